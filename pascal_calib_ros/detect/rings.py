@@ -1,0 +1,280 @@
+"""Find the target's circles in a grey image and measure their edges to subpixel accuracy.
+
+1. Dark blobs by global (Otsu) and, failing that, local thresholding of a downscaled copy;
+   contours with their holes (``cv2.findContours``, two-level hierarchy).
+2. Candidates: blobs whose outline is an ellipse (fit residual small against the size); a ring is
+   such a blob with one elliptical, nearly concentric hole of the expected radius ratio; a disc
+   has no hole. Features are paired with the target by their sizes and layout.
+3. Every circle edge is refined by :func:`refine_edge`. A feature touching the image border, too
+   blurred or absent rejects the view with a reason: a detection never guesses.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from ..geometry.conic import ConicFitError, Ellipse, fit_conic_algebraic
+from ..targets import Target
+from .edges import EdgeError, EdgeFit, refine_edge
+
+
+@dataclass(frozen=True)
+class DetectionParams:
+    max_blur: float = 4.0  # px; wider edges reject the view as too blurred
+    min_radius: float = 8.0  # px, smallest accepted semi-minor axis of an outer edge
+    border_margin: float = 3.0  # px between any feature and the image border
+    working_pixels: int = 1_000_000  # contour search on a copy downscaled to about this size
+    edge_spacing: float = 1.0  # px of arc per edge profile
+    curvature_correction: bool = True
+    gamma: float = 1.0  # linearise intensities with this display gamma before locating edges
+
+
+@dataclass
+class CircleEdge:
+    """Subpixel observation of one target circle (index into ``Target.circles``)."""
+
+    circle: int
+    points: np.ndarray
+    conic: np.ndarray
+    width: float  # median blur sigma, px
+    rms: float
+
+
+@dataclass
+class Detection:
+    """What one view gave: edges of circles, checkerboard corners, or a rejection reason."""
+
+    width: int
+    height: int
+    edges: list[CircleEdge] = field(default_factory=list)
+    corners: np.ndarray | None = None  # (N, 2) checkerboard inner corners, target order
+    reason: str = ""  # empty when usable
+    name: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return not self.reason
+
+    def edge(self, circle: int) -> CircleEdge | None:
+        for e in self.edges:
+            if e.circle == circle:
+                return e
+        return None
+
+
+@dataclass
+class _Blob:
+    contour: np.ndarray  # full-resolution coordinates (N, 2)
+    ellipse: Ellipse
+    holes: list[tuple[np.ndarray, Ellipse]]
+    touches_border: bool
+    fit_residual: float
+
+
+def _ellipse_of(contour: np.ndarray) -> tuple[Ellipse, float] | None:
+    if len(contour) < 8:
+        return None
+    try:
+        C = fit_conic_algebraic(contour)
+        e = Ellipse.from_conic(C)
+    except (ConicFitError, np.linalg.LinAlgError):
+        return None
+    if not np.isfinite([e.a, e.b, e.cx, e.cy]).all() or min(e.a, e.b) <= 0:
+        return None
+    from ..geometry.conic import sampson_distance
+
+    res = float(np.median(np.abs(sampson_distance(C, contour))))
+    return e, res
+
+
+def _to_float(image: np.ndarray) -> np.ndarray:
+    if image.ndim == 3:
+        image = cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+    if image.dtype == np.uint8:
+        return image.astype(np.float32)
+    if image.dtype == np.uint16:
+        return image.astype(np.float32) / 257.0
+    return image.astype(np.float32)
+
+
+def find_blobs(gray: np.ndarray, params: DetectionParams) -> list[_Blob]:
+    """Elliptical dark blobs (with their elliptical holes), full-resolution coordinates."""
+    h, w = gray.shape
+    scale = 1
+    small = gray
+    while small.shape[0] * small.shape[1] > params.working_pixels:
+        small = cv2.pyrDown(small)
+        scale *= 2
+    small8 = np.clip(small, 0, 255).astype(np.uint8)
+    blobs: list[_Blob] = []
+    for mode in ("otsu", "adaptive"):
+        if mode == "otsu":
+            _, mask = cv2.threshold(small8, 0, 255, cv2.THRESH_BINARY_INV | cv2.THRESH_OTSU)
+        else:
+            block = (max(small8.shape) // 8) | 1
+            mask = cv2.adaptiveThreshold(small8, 255, cv2.ADAPTIVE_THRESH_MEAN_C, cv2.THRESH_BINARY_INV, block, 10)
+        blobs = _blobs_from_mask(mask, scale, w, h, params)
+        if any(b.holes for b in blobs) or mode == "adaptive":
+            break
+    return blobs
+
+
+def _blobs_from_mask(mask: np.ndarray, scale: int, w: int, h: int, params: DetectionParams) -> list[_Blob]:
+    contours, hier = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
+    if hier is None:
+        return []
+    hier = hier[0]
+    min_r = params.min_radius / scale
+    out: list[_Blob] = []
+    margin = params.border_margin
+    for i, c in enumerate(contours):
+        if hier[i][3] != -1 or len(c) < 12:
+            continue  # holes are visited through their parent
+        x, y, bw, bh = cv2.boundingRect(c)
+        if min(bw, bh) < 2 * min_r:
+            continue
+        pts = c[:, 0, :].astype(float) * scale + (scale - 1) / 2
+        fit = _ellipse_of(pts)
+        if fit is None:
+            continue
+        e, res = fit
+        if res > 0.03 * min(e.a, e.b) + 0.7 * scale:
+            continue
+        touches = bool(pts[:, 0].min() < margin + scale or pts[:, 1].min() < margin + scale
+                       or pts[:, 0].max() > w - 1 - margin - scale or pts[:, 1].max() > h - 1 - margin - scale)
+        holes = []
+        j = hier[i][2]
+        while j != -1:
+            hc = contours[j]
+            if len(hc) >= 12:
+                hp = hc[:, 0, :].astype(float) * scale + (scale - 1) / 2
+                hf = _ellipse_of(hp)
+                if hf is not None and hf[1] < 0.03 * min(hf[0].a, hf[0].b) + 0.7 * scale:
+                    holes.append((hp, hf[0]))
+            j = hier[j][0]
+        out.append(_Blob(pts, e, holes, touches, res))
+    return out
+
+
+def _edge(gray: np.ndarray, ellipse: Ellipse, params: DetectionParams) -> EdgeFit:
+    return refine_edge(gray, ellipse.to_conic(), spacing=params.edge_spacing, max_width=params.max_blur,
+                       curvature_correction=params.curvature_correction)
+
+
+def detect_target(image: np.ndarray, target: Target, params: DetectionParams = DetectionParams(),
+                  name: str = "", checkerboard: bool = True) -> Detection:
+    """Detect ``target`` in a grey (or BGR) image. Never raises for image content: a view that
+    cannot be used comes back with ``reason`` set."""
+    gray = _to_float(image)
+    h, w = gray.shape
+    det = Detection(w, h, name=name)
+    if gray.size == 0 or not np.isfinite(gray).all():
+        det.reason = "empty or invalid image"
+        return det
+    if float(gray.max() - gray.min()) < 20:
+        det.reason = "no contrast in the image (lens cap, exposure?)"
+        return det
+    work = gray
+    if params.gamma != 1.0:
+        work = (255.0 * (np.clip(gray, 0, 255) / 255.0) ** params.gamma).astype(np.float32)
+    blobs = find_blobs(gray, params)
+    if target.rings:
+        try:
+            ring_blob, hole = _pick_ring(blobs, target, params)
+        except _Reject as r:
+            det.reason = str(r)
+            return det
+        ring = target.rings[0]
+        try:
+            outer = _edge(work, ring_blob.ellipse, params)
+            inner = _edge(work, hole, params)
+        except EdgeError as exc:
+            det.reason = f"ring: {exc}"
+            return det
+        det.edges.append(CircleEdge(0, outer.points, outer.conic, float(np.median(outer.width)), outer.rms))
+        det.edges.append(CircleEdge(1, inner.points, inner.conic, float(np.median(inner.width)), inner.rms))
+        if target.discs:
+            disc_idx = 2 * len(target.rings)
+            try:
+                disc_blob = _pick_disc(blobs, ring_blob, target, params)
+                fit = _edge(work, disc_blob.ellipse, params)
+                det.edges.append(CircleEdge(disc_idx, fit.points, fit.conic, float(np.median(fit.width)), fit.rms))
+            except (_Reject, EdgeError) as exc:
+                det.reason = f"disc: {exc}"
+                return det
+        _ = ring
+    elif target.discs:
+        det.reason = "targets without a ring are not supported by the detector yet"
+        return det
+    if checkerboard and target.checkerboards:
+        from .checkerboard import find_checkerboard
+
+        corners = find_checkerboard(np.clip(gray, 0, 255).astype(np.uint8), target, det)
+        if corners is None and not target.rings:
+            det.reason = "checkerboard not found"
+            return det
+        det.corners = corners
+    return det
+
+
+class _Reject(Exception):
+    pass
+
+
+def _pick_ring(blobs: list[_Blob], target: Target, params: DetectionParams) -> tuple[_Blob, Ellipse]:
+    ring = target.rings[0]
+    ratio = ring.inner_radius / ring.outer_radius
+    cands: list[tuple[float, _Blob, Ellipse]] = []
+    cut = False
+    for b in blobs:
+        if min(b.ellipse.a, b.ellipse.b) < params.min_radius:
+            continue
+        for _, he in b.holes:
+            size = np.sqrt(b.ellipse.a * b.ellipse.b)
+            off = np.hypot(he.cx - b.ellipse.cx, he.cy - b.ellipse.cy) / size
+            r = np.sqrt(he.a * he.b) / size
+            if off < 0.15 and abs(r / ratio - 1) < 0.35:
+                if b.touches_border:
+                    cut = True
+                    continue
+                cands.append((size, b, he))
+    if not cands:
+        if cut:
+            raise _Reject("ring cut by the image border (keep the whole ring in view)")
+        raise _Reject("no ring found")
+    if len(cands) > 1:
+        cands.sort(key=lambda c: -c[0])
+        if cands[1][0] > 0.7 * cands[0][0]:
+            raise _Reject(f"{len(cands)} ring-like shapes of similar size in view: ambiguous")
+    return cands[0][1], cands[0][2]
+
+
+def _pick_disc(blobs: list[_Blob], ring_blob: _Blob, target: Target, params: DetectionParams) -> _Blob:
+    ring, disc = target.rings[0], target.discs[0]
+    size_ratio = disc.radius / ring.outer_radius
+    dist_ratio = np.hypot(disc.center[0] - ring.center[0], disc.center[1] - ring.center[1]) / ring.outer_radius
+    rs = np.sqrt(ring_blob.ellipse.a * ring_blob.ellipse.b)
+    best: tuple[float, _Blob] | None = None
+    cut = False
+    for b in blobs:
+        if b is ring_blob or b.holes and any(np.sqrt(e.a * e.b) > 0.2 * np.sqrt(b.ellipse.a * b.ellipse.b) for _, e in b.holes):
+            continue
+        size = np.sqrt(b.ellipse.a * b.ellipse.b)
+        if size < params.min_radius or b.fit_residual > 0.02 * size + 0.7:
+            continue
+        sr = size / rs
+        dr = np.hypot(b.ellipse.cx - ring_blob.ellipse.cx, b.ellipse.cy - ring_blob.ellipse.cy) / rs
+        score = abs(np.log(sr / size_ratio)) + abs(np.log(dr / dist_ratio))
+        if abs(np.log(sr / size_ratio)) > 0.6 or abs(np.log(dr / dist_ratio)) > 0.6:
+            continue
+        if b.touches_border:
+            cut = True
+            continue
+        if best is None or score < best[0]:
+            best = (score, b)
+    if best is None:
+        raise _Reject("disc cut by the image border" if cut else "no disc found beside the ring")
+    return best[1]

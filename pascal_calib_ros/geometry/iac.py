@@ -1,0 +1,117 @@
+"""Image of the absolute conic w = K^-T K^-1 from circular-point images, and K from w.
+
+Each view's i' gives i'^T w i' = 0 (Zhang 2000, eq. 3; seed paper, eq. 9): with
+w = [[w1, w2, w4], [w2, w3, w5], [w4, w5, w6]] and i' = (x, y, z), the row
+[x^2, 2xy, y^2, 2xz, 2yz, z^2] . (w1..w6) = 0, whose real and imaginary parts are two real
+equations. Three views in general position fix w up to scale; K follows by Cholesky.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# Thresholds on the degeneracy ratio (smallest non-null / largest singular value), PAPER.md
+DEGENERACY_REJECT = 0.01
+DEGENERACY_WARN = 0.05
+
+
+class DegenerateViewsError(ValueError):
+    """The views do not determine w (too few, parallel planes, fronto-parallel only)."""
+
+
+@dataclass(frozen=True)
+class IacSolution:
+    K: np.ndarray
+    omega: np.ndarray
+    degeneracy_ratio: float
+    warning: str = ""
+
+
+def image_normalization(width: float, height: float) -> np.ndarray:
+    """T taking pixels to coordinates centred on the image, scaled by (W + H) / 4."""
+    s = 4.0 / (width + height)
+    return np.array([[s, 0, -s * width / 2], [0, s, -s * height / 2], [0, 0, 1.0]])
+
+
+def _rows(i: np.ndarray, zero_skew: bool) -> np.ndarray:
+    x, y, z = i
+    row = np.array([x * x, 2 * x * y, y * y, 2 * x * z, 2 * y * z, z * z])
+    if zero_skew:
+        row = np.delete(row, 1)
+    return np.stack([row.real, row.imag])
+
+
+def _assemble(w: np.ndarray, zero_skew: bool) -> np.ndarray:
+    if zero_skew:
+        w = np.insert(w, 1, 0.0)
+    w1, w2, w3, w4, w5, w6 = w
+    return np.array([[w1, w2, w4], [w2, w3, w5], [w4, w5, w6]])
+
+
+def constraint_matrix(points: list[np.ndarray], T: np.ndarray, zero_skew: bool = False) -> np.ndarray:
+    """Stacked 2N x 6 (or 2N x 5 with zero skew) matrix A with A w = 0, in normalised
+    coordinates with each i' scaled to unit norm."""
+    rows = []
+    for i in points:
+        q = T @ np.asarray(i, complex)
+        q = q / np.linalg.norm(q)
+        rows.append(_rows(q, zero_skew))
+    return np.concatenate(rows, axis=0)
+
+
+def degeneracy_ratio(A: np.ndarray) -> float:
+    """Smallest non-null singular value over the largest (5th/1st for 6 unknowns)."""
+    s = np.linalg.svd(A, compute_uv=False)
+    n = A.shape[1]
+    if len(s) < n:
+        return 0.0
+    return float(s[n - 2] / s[0])
+
+
+def k_from_omega(omega: np.ndarray) -> np.ndarray:
+    """K from w = K^-T K^-1 by Cholesky: w = L L^T, K^-1 = L^T, K = (L^T)^-1, K[2,2] = 1.
+    Raises :class:`DegenerateViewsError` if w is not positive definite (never clipped)."""
+    w = (omega + omega.T) / 2
+    if np.trace(w) < 0:
+        w = -w
+    try:
+        L = np.linalg.cholesky(w)
+    except np.linalg.LinAlgError:
+        raise DegenerateViewsError(
+            "the image of the absolute conic is not positive definite: the views are too noisy or "
+            "nearly degenerate; add views with the target tilted 20-45 degrees in different directions"
+        ) from None
+    K = np.linalg.inv(L.T)
+    return K / K[2, 2]
+
+
+def iac_from_circular_points(points: list[np.ndarray], width: float, height: float,
+                             zero_skew: bool = False) -> IacSolution:
+    """Solve A w = 0 in normalised coordinates (SVD), check degeneracy and definiteness, K by
+    Cholesky. ``points`` holds one i' (complex homogeneous 3-vector, pixels) per view or circle
+    pair. Raises :class:`DegenerateViewsError` with advice a user can act on."""
+    unknowns = 5 if zero_skew else 6
+    needed = int(np.ceil((unknowns - 1) / 2))
+    if len(points) < needed:
+        raise DegenerateViewsError(
+            f"{len(points)} view(s) give {2 * len(points)} equations; w needs {unknowns - 1}: "
+            f"capture at least {needed} views with the target at different tilts")
+    T = image_normalization(width, height)
+    A = constraint_matrix(points, T, zero_skew)
+    ratio = degeneracy_ratio(A)
+    if ratio < DEGENERACY_REJECT:
+        raise DegenerateViewsError(
+            f"degenerate set of views (ratio {ratio:.4f} < {DEGENERACY_REJECT}): all target planes "
+            "nearly parallel or fronto-parallel; tilt the target 20-45 degrees about different axes "
+            "between views")
+    warning = ""
+    if ratio < DEGENERACY_WARN:
+        warning = (f"weakly constrained set of views (ratio {ratio:.3f} < {DEGENERACY_WARN}): add "
+                   "views tilted about other axes")
+    _, _, vt = np.linalg.svd(A)
+    wn = _assemble(vt[-1], zero_skew)
+    omega = T.T @ wn @ T
+    K = k_from_omega(omega)
+    return IacSolution(K, omega / np.linalg.norm(omega), ratio, warning)

@@ -1,0 +1,270 @@
+"""Renderer of targets with exact geometry and a simple sensor model.
+
+Each pixel centre (integer coordinates, OpenCV convention) is inverse-mapped through the camera
+(plumb_bob undistortion by Newton, ray-plane intersection) to the target plane. Edges are
+anti-aliased with the box-filter coverage of the signed distance in pixels,
+coverage = clip(1/2 - d / |grad_px d|, 0, 1), exact for straight edges and to O(curvature) for
+curved ones. Then, in linear radiance: vignetting, Gaussian blur (optics/defocus); then the display
+gamma, Gaussian noise, 8-bit quantisation and optional JPEG. Ground truth is returned beside the
+image (and written as JSON by :func:`write_view`).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..geometry.camera import Camera, rodrigues, rotation_to_rvec
+from ..targets import Target
+
+WHITE = 0.85
+BLACK = 0.06
+BACKGROUND = 0.30
+
+
+@dataclass(frozen=True)
+class Pose:
+    """Target-to-camera transform: X_cam = R X_target + t (metres)."""
+
+    R: np.ndarray
+    t: np.ndarray
+
+    @property
+    def rvec(self) -> np.ndarray:
+        return rotation_to_rvec(self.R)
+
+    def to_dict(self) -> dict[str, list[float]]:
+        return {"rvec": self.rvec.tolist(), "t": np.asarray(self.t, float).tolist()}
+
+    @staticmethod
+    def from_dict(d: dict[str, list[float]]) -> Pose:
+        return Pose(rodrigues(np.array(d["rvec"])), np.array(d["t"], float))
+
+
+@dataclass(frozen=True)
+class SensorModel:
+    """Image formation after the geometry (all optional)."""
+
+    blur_sigma: float = 0.8  # Gaussian blur in px (optics); defocus: 3-6 px
+    noise_sigma: float = 1.5  # Gaussian noise in 8-bit grey levels, after gamma
+    gamma: float = 2.2  # display gamma (1 = linear)
+    vignetting: float = 0.25  # relative fall-off at the image corner (cos^4-like, quadratic)
+    jpeg_quality: int = 0  # 0 = no JPEG
+    background_texture: float = 0.08  # amplitude of smooth clutter in the background
+    seed: int = 0
+
+
+@dataclass
+class RenderedView:
+    image: np.ndarray  # uint8 (H, W)
+    camera: Camera
+    pose: Pose | None
+    sensor: SensorModel
+    target_name: str
+    meta: dict[str, object] = field(default_factory=dict)
+
+    def ground_truth(self) -> dict[str, object]:
+        return {
+            "target": self.target_name,
+            "width": self.camera.width,
+            "height": self.camera.height,
+            "K": self.camera.K.tolist(),
+            "D": self.camera.D.tolist(),
+            "pose": None if self.pose is None else self.pose.to_dict(),
+            "sensor": asdict(self.sensor),
+            **self.meta,
+        }
+
+
+def plane_coordinates(camera: Camera, pose: Pose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Target-plane (x, y) of every pixel centre, and a mask of pixels that see the plane."""
+    h, w = camera.height, camera.width
+    us, vs = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
+    uv = np.stack([us, vs], -1).reshape(-1, 2)
+    xn = camera.undistort_pixels(uv)
+    d = np.concatenate([xn, np.ones((len(xn), 1))], 1)
+    n = pose.R[:, 2]
+    denom = d @ n
+    lam = np.where(np.abs(denom) > 1e-12, (n @ pose.t) / np.where(denom == 0, 1, denom), -1.0)
+    X = d * lam[:, None]
+    P = (X - pose.t) @ pose.R  # R^T (X - t)
+    valid = (lam > 0).reshape(h, w)
+    # the inverse map is only trustworthy where distortion is monotonic: check by reprojection
+    back = camera.project(X[lam > 0]) if np.any(lam > 0) else np.zeros((0, 2))
+    ok = np.zeros(len(uv), bool)
+    ok[lam > 0] = np.linalg.norm(back - uv[lam > 0], axis=1) < 1e-3
+    valid &= ok.reshape(h, w)
+    return P[:, 0].reshape(h, w), P[:, 1].reshape(h, w), valid
+
+
+def _soft_step(d_plane: np.ndarray, gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
+    """Coverage of {d < 0} for a signed plane distance d with pixel gradient (gx, gy)."""
+    g = np.maximum(np.hypot(gx, gy), 1e-12)
+    return np.clip(0.5 - d_plane / g, 0.0, 1.0)
+
+
+def reflectance(target: Target, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Anti-aliased reflectance of the sheet at plane coordinates (x, y) given on a pixel grid,
+    and the sheet's coverage of each pixel."""
+    xu, xv = np.gradient(x, axis=1), np.gradient(x, axis=0)
+    yu, yv = np.gradient(y, axis=1), np.gradient(y, axis=0)
+
+    def pix_grad(dx: np.ndarray | float, dy: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+        return dx * xu + dy * yu, dx * xv + dy * yv
+
+    dark = np.zeros_like(x)
+    for ring in target.rings:
+        for r, sign in ((ring.outer_radius, 1.0), (ring.inner_radius, -1.0)):
+            dx, dy = x - ring.center[0], y - ring.center[1]
+            rho = np.maximum(np.hypot(dx, dy), 1e-15)
+            dark += sign * _soft_step(rho - r, *pix_grad(dx / rho, dy / rho))
+    for disc in target.discs:
+        dx, dy = x - disc.center[0], y - disc.center[1]
+        rho = np.maximum(np.hypot(dx, dy), 1e-15)
+        dark += _soft_step(rho - disc.radius, *pix_grad(dx / rho, dy / rho))
+    for b in target.checkerboards:
+        fx = (x - b.origin[0]) / b.square_size
+        fy = (y - b.origin[1]) / b.square_size
+        kx, ky = np.round(fx), np.round(fy)
+        ex, ey = (fx - kx) * b.square_size, (fy - ky) * b.square_size
+        # soft sign of each axis' cell parity: (-1)^k * clip(2 e_px, -1, 1)
+        sx = np.where(kx % 2 == 0, 1.0, -1.0) * (1 - 2 * _soft_step(ex, *pix_grad(1.0, 0.0)))
+        sy = np.where(ky % 2 == 0, 1.0, -1.0) * (1 - 2 * _soft_step(ey, *pix_grad(0.0, 1.0)))
+        pattern = (1 + sx * sy) / 2 if b.first_square == "black" else (1 - sx * sy) / 2
+        x0, y0, x1, y1 = b.extent
+        inside = (_soft_step(x0 - x, *pix_grad(-1.0, 0.0)) * _soft_step(x - x1, *pix_grad(1.0, 0.0))
+                  * _soft_step(y0 - y, *pix_grad(0.0, -1.0)) * _soft_step(y - y1, *pix_grad(0.0, 1.0)))
+        dark += pattern * inside
+    w, h = target.sheet
+    sheet = (_soft_step(-x, *pix_grad(-1.0, 0.0)) * _soft_step(x - w, *pix_grad(1.0, 0.0))
+             * _soft_step(-y, *pix_grad(0.0, -1.0)) * _soft_step(y - h, *pix_grad(0.0, 1.0)))
+    return WHITE - (WHITE - BLACK) * np.clip(dark, 0.0, 1.0), sheet
+
+
+def _background(h: int, w: int, amplitude: float, rng: np.random.Generator) -> np.ndarray:
+    small = rng.uniform(-1, 1, size=(max(h // 64, 2), max(w // 64, 2)))
+    return BACKGROUND + amplitude * cv2.resize(small, (w, h), interpolation=cv2.INTER_CUBIC)
+
+
+def apply_sensor(radiance: np.ndarray, sensor: SensorModel, rng: np.random.Generator) -> np.ndarray:
+    """Vignetting, blur (linear light), gamma, noise, quantisation, JPEG -> uint8."""
+    h, w = radiance.shape
+    img = radiance.astype(np.float64)
+    if sensor.vignetting:
+        yy, xx = np.mgrid[0:h, 0:w]
+        r2 = ((xx - w / 2) ** 2 + (yy - h / 2) ** 2) / ((w / 2) ** 2 + (h / 2) ** 2)
+        img = img * (1 - sensor.vignetting * r2)
+    if sensor.blur_sigma > 0:
+        img = cv2.GaussianBlur(img, (0, 0), sensor.blur_sigma, borderType=cv2.BORDER_REFLECT)
+    img = np.clip(img, 0, 1) ** (1 / sensor.gamma) * 255.0
+    if sensor.noise_sigma > 0:
+        img = img + rng.normal(0, sensor.noise_sigma, img.shape)
+    out = np.clip(np.round(img), 0, 255).astype(np.uint8)
+    if sensor.jpeg_quality:
+        ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(sensor.jpeg_quality)])
+        out = cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE)
+    return out
+
+
+def render_view(target: Target, camera: Camera, pose: Pose | None, sensor: SensorModel = SensorModel()) -> RenderedView:
+    """Render one grey image of the target at ``pose`` (None: a view without any target)."""
+    rng = np.random.default_rng(sensor.seed)
+    h, w = camera.height, camera.width
+    radiance = _background(h, w, sensor.background_texture, rng)
+    if pose is not None:
+        x, y, valid = plane_coordinates(camera, pose)
+        x = np.where(valid, x, -1e3)
+        y = np.where(valid, y, -1e3)
+        refl, sheet = reflectance(target, x, y)
+        sheet = np.where(valid, sheet, 0.0)
+        radiance = sheet * refl + (1 - sheet) * radiance
+    return RenderedView(apply_sensor(radiance, sensor, rng), camera, pose, sensor, target.name)
+
+
+def write_view(view: RenderedView, path: str | Path) -> Path:
+    """Write the image (PNG, or JPEG if the sensor used JPEG) and ``<name>.json`` ground truth."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    if not cv2.imwrite(str(p), view.image):
+        raise OSError(f"could not write {p}")
+    p.with_suffix(".json").write_text(json.dumps(view.ground_truth(), indent=1))
+    return p
+
+
+def look_at_pose(target: Target, camera: Camera, pixel: tuple[float, float], size_fraction: float,
+                 tilt_deg: float, tilt_axis_deg: float, roll_deg: float,
+                 anchor: tuple[float, float] | None = None) -> Pose:
+    """Pose that puts the target's anchor (default: centre of its features) at ``pixel``, tilted
+    by ``tilt_deg`` about an in-plane axis at ``tilt_axis_deg``, rolled by ``roll_deg``, at a
+    distance where the sheet's feature extent spans ``size_fraction`` of the image width."""
+    if anchor is None:
+        anchor = feature_centre(target)
+    a = np.radians(tilt_axis_deg)
+    R = rodrigues(np.radians(tilt_deg) * np.array([np.cos(a), np.sin(a), 0.0])) @ rodrigues(
+        np.array([0.0, 0.0, np.radians(roll_deg)]))
+    extent = feature_extent(target)
+    Z = camera.K[0, 0] * extent / (size_fraction * camera.width)
+    xn = camera.undistort_pixels(np.array([pixel], float))[0]
+    centre_cam = Z * np.array([xn[0], xn[1], 1.0])
+    t = centre_cam - R @ np.array([anchor[0], anchor[1], 0.0])
+    return Pose(R, t)
+
+
+def feature_centre(target: Target) -> tuple[float, float]:
+    pts = feature_outline(target, 16)
+    lo, hi = pts.min(0), pts.max(0)
+    return (float(lo[0] + hi[0]) / 2, float(lo[1] + hi[1]) / 2)
+
+
+def feature_extent(target: Target) -> float:
+    pts = feature_outline(target, 16)
+    return float(np.max(pts.max(0) - pts.min(0)))
+
+
+def feature_outline(target: Target, n: int = 64) -> np.ndarray:
+    """Points on every circle and the checkerboard outline (target plane, (N, 2))."""
+    pts = []
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    for c in target.circles:
+        pts.append(np.stack([c.center[0] + c.radius * np.cos(t), c.center[1] + c.radius * np.sin(t)], 1))
+    for b in target.checkerboards:
+        x0, y0, x1, y1 = b.extent
+        pts.append(np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]]))
+    return np.concatenate(pts)
+
+
+def features_in_image(target: Target, camera: Camera, pose: Pose, margin: float = 3.0) -> bool:
+    """True if every feature outline projects inside the image with ``margin`` px to spare."""
+    P = feature_outline(target)
+    X = (pose.R @ np.concatenate([P, np.zeros((len(P), 1))], 1).T).T + pose.t
+    if np.any(X[:, 2] <= 0):
+        return False
+    uv = camera.project(X)
+    # reject poses where distortion folds (projection not invertible near the corners)
+    back = camera.undistort_pixels(uv)
+    if np.max(np.abs(back - X[:, :2] / X[:, 2:3])) > 1e-6:
+        return False
+    return bool(np.all((uv[:, 0] >= margin) & (uv[:, 0] <= camera.width - 1 - margin)
+                       & (uv[:, 1] >= margin) & (uv[:, 1] <= camera.height - 1 - margin)))
+
+
+def random_poses(target: Target, camera: Camera, n: int, rng: np.random.Generator,
+                 tilt_range: tuple[float, float] = (15.0, 50.0), size_range: tuple[float, float] = (0.3, 0.6),
+                 margin: float = 10.0, max_tries: int = 2000) -> list[Pose]:
+    """A capture session: n poses with the whole target in view, varied position, size, tilt."""
+    poses: list[Pose] = []
+    tries = 0
+    while len(poses) < n:
+        tries += 1
+        if tries > max_tries:
+            raise RuntimeError("could not place the target in view; widen the ranges")
+        pixel = (rng.uniform(0.2, 0.8) * camera.width, rng.uniform(0.2, 0.8) * camera.height)
+        pose = look_at_pose(target, camera, pixel, rng.uniform(*size_range), rng.uniform(*tilt_range),
+                            rng.uniform(0, 360), rng.uniform(-30, 30))
+        if features_in_image(target, camera, pose, margin):
+            poses.append(pose)
+    return poses

@@ -1,0 +1,275 @@
+"""Calibration targets loaded from YAML and validated.
+
+Frame: origin at the sheet's top-left corner, x to the right, y down, z into the sheet; metres.
+A target is a flat sheet carrying features: ``ring`` (black annulus, two concentric circles),
+``disc`` (black filled circle) and ``checkerboard``. See ``config/targets/*.yaml``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+
+class TargetError(ValueError):
+    """The target description is invalid; the message says what to fix."""
+
+
+@dataclass(frozen=True)
+class Circle:
+    """One printed circle edge: centre (x, y) on the sheet, radius, and which side is dark.
+
+    ``dark_inside`` is True for the outer edge of a ring and for a disc's edge, False for the
+    inner edge of a ring. It fixes the sign of the edge-offset nuisance parameter.
+    """
+
+    center: tuple[float, float]
+    radius: float
+    dark_inside: bool
+    feature: str  # e.g. "ring/outer", "ring/inner", "disc"
+
+
+@dataclass(frozen=True)
+class Ring:
+    center: tuple[float, float]
+    outer_radius: float
+    inner_radius: float
+
+    @property
+    def circles(self) -> tuple[Circle, Circle]:
+        return (
+            Circle(self.center, self.outer_radius, True, "ring/outer"),
+            Circle(self.center, self.inner_radius, False, "ring/inner"),
+        )
+
+
+@dataclass(frozen=True)
+class Disc:
+    center: tuple[float, float]
+    radius: float
+
+    @property
+    def circles(self) -> tuple[Circle]:
+        return (Circle(self.center, self.radius, True, "disc"),)
+
+
+@dataclass(frozen=True)
+class Checkerboard:
+    origin: tuple[float, float]
+    squares: tuple[int, int]  # squares along x, y
+    square_size: float
+    first_square: str  # "black" | "white"
+
+    @property
+    def inner_corners(self) -> tuple[int, int]:
+        """Inner corners along x, y (OpenCV's pattern size)."""
+        return (self.squares[0] - 1, self.squares[1] - 1)
+
+    def corner_points(self) -> np.ndarray:
+        """Inner corners on the sheet, (N, 2), row-major along x then y (OpenCV order)."""
+        nx, ny = self.inner_corners
+        xs = self.origin[0] + self.square_size * np.arange(1, nx + 1)
+        ys = self.origin[1] + self.square_size * np.arange(1, ny + 1)
+        gx, gy = np.meshgrid(xs, ys)
+        return np.stack([gx.ravel(), gy.ravel()], axis=1)
+
+    @property
+    def extent(self) -> tuple[float, float, float, float]:
+        x0, y0 = self.origin
+        return (x0, y0, x0 + self.squares[0] * self.square_size, y0 + self.squares[1] * self.square_size)
+
+
+Feature = Ring | Disc | Checkerboard
+
+
+@dataclass(frozen=True)
+class Target:
+    name: str
+    sheet: tuple[float, float]
+    rings: tuple[Ring, ...] = ()
+    discs: tuple[Disc, ...] = ()
+    checkerboards: tuple[Checkerboard, ...] = ()
+    source: str = field(default="", compare=False)
+
+    @property
+    def circles(self) -> tuple[Circle, ...]:
+        """Every circle edge of the target: rings first (outer, inner), then discs."""
+        out: list[Circle] = []
+        for r in self.rings:
+            out.extend(r.circles)
+        for d in self.discs:
+            out.extend(d.circles)
+        return tuple(out)
+
+    @property
+    def checkerboard(self) -> Checkerboard | None:
+        return self.checkerboards[0] if self.checkerboards else None
+
+    def default_method(self) -> str:
+        """The method a user gets without ``--method``."""
+        if self.rings:
+            return "ring"
+        if len(self.discs) >= 2:
+            return "huang"
+        if self.checkerboards:
+            return "zhang"
+        raise TargetError(f"target {self.name!r} has no feature any method can use")
+
+    def methods(self) -> tuple[str, ...]:
+        """Methods this target supports."""
+        out = []
+        if self.rings:
+            out += ["ring", "pt2", "pt1"]
+        if len(self.rings) + len(self.discs) >= 2:
+            out.append("huang")
+        if self.checkerboards:
+            out.append("zhang")
+        return tuple(out)
+
+
+def _floats(value: Any, n: int, where: str) -> tuple[float, ...]:
+    if not isinstance(value, (list, tuple)) or len(value) != n:
+        raise TargetError(f"{where}: expected a list of {n} numbers, got {value!r}")
+    try:
+        out = tuple(float(v) for v in value)
+    except (TypeError, ValueError):
+        raise TargetError(f"{where}: expected numbers, got {value!r}") from None
+    if not all(np.isfinite(out)):
+        raise TargetError(f"{where}: numbers must be finite, got {value!r}")
+    return out
+
+
+def _positive(value: Any, where: str) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise TargetError(f"{where}: expected a number, got {value!r}") from None
+    if not np.isfinite(v) or v <= 0:
+        raise TargetError(f"{where}: must be a positive length in metres, got {value!r}")
+    if v > 10:
+        raise TargetError(f"{where}: {v} m is implausible; target units are metres")
+    return v
+
+
+def _require(d: dict[str, Any], key: str, where: str) -> Any:
+    if key not in d:
+        raise TargetError(f"{where}: missing key {key!r}")
+    return d[key]
+
+
+def parse_target(data: Any, source: str = "<dict>") -> Target:
+    """Build a validated :class:`Target` from parsed YAML."""
+    if not isinstance(data, dict):
+        raise TargetError(f"{source}: a target file is a mapping with name, sheet, features")
+    name = str(_require(data, "name", source))
+    sheet_d = _require(data, "sheet", source)
+    if not isinstance(sheet_d, dict):
+        raise TargetError(f"{source}: sheet must be {{width: .., height: ..}}")
+    sheet = (
+        _positive(_require(sheet_d, "width", f"{source}: sheet"), f"{source}: sheet.width"),
+        _positive(_require(sheet_d, "height", f"{source}: sheet"), f"{source}: sheet.height"),
+    )
+    feats = _require(data, "features", source)
+    if not isinstance(feats, list) or not feats:
+        raise TargetError(f"{source}: features must be a non-empty list")
+    rings: list[Ring] = []
+    discs: list[Disc] = []
+    boards: list[Checkerboard] = []
+    for i, f in enumerate(feats):
+        where = f"{source}: features[{i}]"
+        if not isinstance(f, dict):
+            raise TargetError(f"{where}: expected a mapping with a 'type'")
+        kind = f.get("type")
+        if kind == "ring":
+            c = _floats(_require(f, "center", where), 2, f"{where}.center")
+            ro = _positive(_require(f, "outer_radius", where), f"{where}.outer_radius")
+            ri = _positive(_require(f, "inner_radius", where), f"{where}.inner_radius")
+            if ri >= ro:
+                raise TargetError(f"{where}: inner_radius {ri} must be smaller than outer_radius {ro}")
+            if ri / ro > 0.9:
+                raise TargetError(f"{where}: ring too thin (inner/outer = {ri / ro:.2f} > 0.9) to detect both edges")
+            rings.append(Ring((c[0], c[1]), ro, ri))
+        elif kind == "disc":
+            c = _floats(_require(f, "center", where), 2, f"{where}.center")
+            r = _positive(_require(f, "radius", where), f"{where}.radius")
+            discs.append(Disc((c[0], c[1]), r))
+        elif kind == "checkerboard":
+            o = _floats(_require(f, "origin", where), 2, f"{where}.origin")
+            sq = _require(f, "squares", where)
+            if not (isinstance(sq, list) and len(sq) == 2 and all(isinstance(s, int) for s in sq)):
+                raise TargetError(f"{where}.squares: expected two integers [nx, ny], got {sq!r}")
+            if min(sq) < 3:
+                raise TargetError(f"{where}.squares: need at least 3 squares per side, got {sq!r}")
+            size = _positive(_require(f, "square_size", where), f"{where}.square_size")
+            first = str(f.get("first_square", "black"))
+            if first not in ("black", "white"):
+                raise TargetError(f"{where}.first_square: 'black' or 'white', got {first!r}")
+            boards.append(Checkerboard((o[0], o[1]), (sq[0], sq[1]), size, first))
+        else:
+            raise TargetError(f"{where}: unknown feature type {kind!r} (ring, disc, checkerboard)")
+    target = Target(name, sheet, tuple(rings), tuple(discs), tuple(boards), source)
+    _check_layout(target)
+    return target
+
+
+def _check_layout(t: Target) -> None:
+    w, h = t.sheet
+    shapes: list[tuple[str, tuple[float, float, float, float]]] = []
+    for r in t.rings:
+        x, y = r.center
+        shapes.append(("ring", (x - r.outer_radius, y - r.outer_radius, x + r.outer_radius, y + r.outer_radius)))
+    for d in t.discs:
+        x, y = d.center
+        shapes.append(("disc", (x - d.radius, y - d.radius, x + d.radius, y + d.radius)))
+    for b in t.checkerboards:
+        shapes.append(("checkerboard", b.extent))
+    for name, (x0, y0, x1, y1) in shapes:
+        if x0 < 0 or y0 < 0 or x1 > w or y1 > h:
+            raise TargetError(f"{t.source}: {name} extends off the {w} x {h} m sheet")
+    circles = [(r.center, r.outer_radius, "ring") for r in t.rings] + [(d.center, d.radius, "disc") for d in t.discs]
+    for i in range(len(circles)):
+        for j in range(i + 1, len(circles)):
+            (c1, r1, n1), (c2, r2, n2) = circles[i], circles[j]
+            if np.hypot(c1[0] - c2[0], c1[1] - c2[1]) <= r1 + r2:
+                raise TargetError(f"{t.source}: {n1} and {n2} overlap; circles must be separated")
+    for name, (x0, y0, x1, y1) in shapes[len(circles):]:
+        for c, r, n in circles:
+            if x0 - r < c[0] < x1 + r and y0 - r < c[1] < y1 + r:
+                raise TargetError(f"{t.source}: {n} overlaps the {name}")
+
+
+def load_target(path: str | Path) -> Target:
+    """Load and validate a target YAML file. Raises :class:`TargetError` with a clear message."""
+    p = Path(path)
+    if not p.is_file():
+        raise TargetError(f"target file not found: {p}")
+    try:
+        data = yaml.safe_load(p.read_text())
+    except yaml.YAMLError as e:
+        raise TargetError(f"{p}: not valid YAML: {e}") from None
+    return parse_target(data, str(p))
+
+
+def packaged_targets_dir() -> Path:
+    """``config/targets`` shipped with the package (source tree or installed share dir)."""
+    here = Path(__file__).resolve().parent
+    candidates = [here.parent / "config" / "targets", here / "config" / "targets"]
+    import sys
+
+    candidates.append(Path(sys.prefix) / "share" / "pascal_calib_ros" / "config" / "targets")
+    for c in candidates:
+        if c.is_dir():
+            return c
+    raise TargetError("packaged target files not found")
+
+
+def resolve_target(name_or_path: str) -> Target:
+    """Load a target by path, or by the name of a packaged target (e.g. ``ring_a4``)."""
+    p = Path(name_or_path)
+    if p.suffix in (".yaml", ".yml") or p.exists():
+        return load_target(p)
+    return load_target(packaged_targets_dir() / f"{name_or_path}.yaml")
