@@ -13,8 +13,8 @@ the image of its circle, plus the reprojection error of checkerboard corners if 
   absorbs the bias (PAPER.md: 0.02 px of bias moves f by ~0.7 %).
 
 Poses have 6 dof (rvec, t) or 5 for a target with a single circle centre (rotation about the
-ring's axis unobservable). Jacobians by finite differences grouped with the sparsity structure
-(intrinsics x all rows, each view's parameters x its rows).
+ring's axis unobservable). Solved by Levenberg-Marquardt with IRLS weights; Jacobians by forward differences grouped by the
+block structure (intrinsics x all rows, each view's parameters x its rows only).
 """
 
 from __future__ import annotations
@@ -22,8 +22,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.sparse import lil_matrix
 
 from ..geometry.camera import distort, normalized_to_pixels, pixels_to_normalized, undistort
 
@@ -181,24 +179,109 @@ class Problem:
         vi = self.view_of_corner
         return self._project_local(K, D, R[vi], t[vi], self.corner_obj) - self.corners
 
-    def sparsity(self) -> lil_matrix:
+    def view_columns(self) -> tuple[int, np.ndarray, np.ndarray]:
+        """(number of intrinsic columns, per-view column offsets, view of each residual row)."""
         nf = len(self.free)
-        m = self.n_edge + 2 * self.n_corner
-        S = lil_matrix((m, nf + self.nv * self.per_view), dtype=int)
-        S[:, :nf] = 1
-        for i in range(self.nv):
-            cols = slice(nf + i * self.per_view, nf + (i + 1) * self.per_view)
-            rows = np.nonzero(self.view_of_pt == i)[0]
-            S[rows, cols] = 1
-            crow = np.nonzero(self.view_of_corner == i)[0]
-            if len(crow):
-                S[np.concatenate([self.n_edge + 2 * crow, self.n_edge + 2 * crow + 1]), cols] = 1
-        return S
+        offsets = nf + self.per_view * np.arange(self.nv)
+        rows = np.concatenate([self.view_of_pt, np.repeat(self.view_of_corner, 2)])
+        return nf, offsets, rows
+
+
+@dataclass
+class LMResult:
+    x: np.ndarray
+    fun: np.ndarray
+    jac: np.ndarray
+    weights: np.ndarray
+    cost: float
+    nfev: int
+    iterations: int
+    success: bool
+    message: str
+
+
+def _jacobian(fun: object, x: np.ndarray, f0: np.ndarray, prob: Problem, intr0: np.ndarray) -> tuple[np.ndarray, int]:
+    """Forward differences exploiting the block structure: each intrinsic column alone, then each
+    per-view column j perturbed in every view at once (a view's rows depend on its own block)."""
+    nf, offs, rows = prob.view_columns()
+    J = np.zeros((len(f0), len(x)))
+    nfev = 0
+    for j in range(nf):
+        h = 1e-6 * max(abs(x[j]), 1e-2)
+        xp = x.copy()
+        xp[j] += h
+        J[:, j] = (prob.residuals(xp, intr0) - f0) / h
+        nfev += 1
+    for j in range(prob.per_view):
+        cols = offs + j
+        h = 1e-7 * np.maximum(np.abs(x[cols]), 1e-2)
+        xp = x.copy()
+        xp[cols] += h
+        df = prob.residuals(xp, intr0) - f0
+        nfev += 1
+        J[np.arange(len(f0)), cols[rows]] = df / h[rows]
+    return J, nfev
+
+
+def levenberg_marquardt(prob: Problem, x0: np.ndarray, intr0: np.ndarray, loss_scale: float,
+                        max_iter: int = 60, tol: float = 1e-10) -> LMResult:
+    """Levenberg-Marquardt with iteratively reweighted soft-L1 loss rho(z) = 2 (sqrt(1 + z) - 1),
+    z = (r / f)^2, weights 1 / sqrt(1 + z); dense normal equations (the parameter count is small)."""
+    x = x0.copy()
+    f = prob.residuals(x, intr0)
+    nfev = 1
+
+    def robust_cost(r: np.ndarray) -> float:
+        z = (r / loss_scale) ** 2
+        return float(loss_scale**2 * np.sum(np.sqrt(1 + z) - 1))
+
+    cost = robust_cost(f)
+    lam = 1e-3
+    message, success = "maximum iterations reached", False
+    J = np.zeros((len(f), len(x)))
+    w = np.ones(len(f))
+    it = 0
+    for it in range(1, max_iter + 1):
+        J, n = _jacobian(prob.residuals, x, f, prob, intr0)
+        nfev += n
+        w = 1.0 / np.sqrt(1 + (f / loss_scale) ** 2)
+        Jw = J * w[:, None]
+        A = J.T @ Jw
+        g = Jw.T @ f
+        d = np.sqrt(np.maximum(np.diag(A), 1e-30))
+        An = A / d[:, None] / d[None, :]
+        gn = g / d
+        improved = False
+        for _ in range(12):
+            try:
+                step = -np.linalg.solve(An + lam * np.eye(len(x)), gn) / d
+            except np.linalg.LinAlgError:
+                lam *= 10
+                continue
+            xn = x + step
+            fn = prob.residuals(xn, intr0)
+            nfev += 1
+            cn = robust_cost(fn)
+            if cn < cost:
+                rel = (cost - cn) / max(cost, 1e-300)
+                x, f, cost = xn, fn, cn
+                lam = max(lam * 0.2, 1e-9)
+                improved = True
+                break
+            lam *= 10
+        if not improved:
+            message, success = "no further decrease of the cost", True
+            break
+        if rel < tol or np.linalg.norm(step * d) < tol * (np.linalg.norm(x * d) + tol):
+            message, success = "converged", True
+            break
+    w = 1.0 / np.sqrt(1 + (f / loss_scale) ** 2)
+    return LMResult(x, f, J, w, cost, nfev, it, success, message)
 
 
 def refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[np.ndarray], dof: int,
            distortion: str = "plumb_bob", zero_skew: bool = True, use_offsets: bool = True,
-           loss_scale: float = 0.3, max_nfev: int = 100) -> RefineResult:
+           loss_scale: float = 0.3, max_iter: int = 60) -> RefineResult:
     """Least squares over K, D, poses and offsets (see the module docstring)."""
     if distortion not in DISTORTION_MODELS:
         raise ValueError(f"unknown distortion model {distortion!r}: {', '.join(DISTORTION_MODELS)}")
@@ -209,9 +292,7 @@ def refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[n
         if name not in free:
             intr0[INTRINSIC_NAMES.index(name)] = 0.0 if name not in DISTORTION_MODELS[distortion] else intr0[INTRINSIC_NAMES.index(name)]
     x0 = prob.pack(intr0, poses0, np.zeros(len(views)))
-    sol = least_squares(prob.residuals, x0, args=(intr0,), jac_sparsity=prob.sparsity(), method="trf",
-                        loss="soft_l1", f_scale=loss_scale, x_scale="jac", max_nfev=max_nfev,
-                        xtol=1e-10, ftol=1e-10, gtol=1e-10)
+    sol = levenberg_marquardt(prob, x0, intr0, loss_scale, max_iter=max_iter)
     intr, poses, offsets = prob.unpack(sol.x, intr0)
     K = np.array([[intr[0], intr[4], intr[2]], [0, intr[1], intr[3]], [0, 0, 1.0]])
     D = intr[5:10].copy()
@@ -227,12 +308,12 @@ def refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[n
             if sel.any():
                 corner_rms[i] = float(np.sqrt(np.mean(np.sum(cr[sel] ** 2, 1))))
     # standard deviations from the Gauss-Newton covariance s^2 (J^T J)^-1
-    J = sol.jac.toarray() if hasattr(sol.jac, "toarray") else np.asarray(sol.jac)
+    J = sol.jac
     dof_res = max(len(sol.fun) - len(sol.x), 1)
-    s2 = float(np.sum(sol.fun**2) / dof_res)
+    s2 = float(np.sum(sol.weights * sol.fun**2) / dof_res)
     std: dict[str, float] = {}
     try:
-        cov = np.linalg.pinv(J.T @ J) * s2
+        cov = np.linalg.pinv(J.T @ (J * sol.weights[:, None])) * s2
         for k, idx in enumerate(prob.free):
             std[INTRINSIC_NAMES[idx]] = float(np.sqrt(max(cov[k, k], 0.0)))
     except np.linalg.LinAlgError:

@@ -43,58 +43,60 @@ def sample_profiles(image: np.ndarray, pts: np.ndarray, normals: np.ndarray, off
     return cv2.remap(image, mx, my, interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
 
 
-def fit_step_profiles(prof: np.ndarray, s: np.ndarray, w0: float = 1.0, iterations: int = 12
+def fit_step_profiles(prof: np.ndarray, s: np.ndarray, w0: float = 1.0, iterations: int = 8
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Fit a + b s + c Phi((s - s0)/w) to each row of ``prof`` (vectorised LM).
+    """Fit a + b s + c Phi((s - s0)/w) to each row of ``prof`` (vectorised Levenberg-Marquardt).
 
+    Starts from the moments of the baseline-removed derivative (centroid -> s0, spread -> w).
     Returns s0, w, c and the RMS residual of each profile."""
     n, m = prof.shape
     y = prof.astype(np.float64)
     k = max(2, m // 6)
     lo, hi = y[:, :k].mean(1), y[:, -k:].mean(1)
-    # start at the steepest point of the smoothed profile
-    g = np.abs(np.diff(y, axis=1))
-    if m > 5:
-        g = cv2.GaussianBlur(g, (5, 1), 0) if g.shape[1] >= 5 else g
+    g = np.diff(y, axis=1) * np.sign(hi - lo)[:, None]
+    g = np.maximum(g - np.median(g, axis=1, keepdims=True), 0.0)
     s_mid = (s[:-1] + s[1:]) / 2
-    p = np.stack([lo, np.zeros(n), hi - lo, s_mid[np.argmax(g, axis=1)], np.full(n, w0)], 1)
-    lam = np.full(n, 1e-3)
+    gs = np.maximum(g.sum(1), 1e-9)
+    c0 = (g * s_mid).sum(1) / gs
+    var = (g * (s_mid - c0[:, None]) ** 2).sum(1) / gs
+    w_init = np.clip(np.sqrt(np.maximum(var, 0.0)), 0.3, 0.5 * (s[-1] - s[0]))
+    w_init = np.where(np.isfinite(w_init), w_init, w0)
+    p = np.stack([lo, np.zeros(n), hi - lo, c0, w_init], 1)
+    lam = np.full(n, 1e-2)
+    ones = np.ones((n, m))
+    S = np.broadcast_to(s[None, :], (n, m))
 
-    def model(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def model(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         z = (s[None, :] - p[:, 3:4]) / p[:, 4:5]
-        return p[:, 0:1] + p[:, 1:2] * s[None, :] + p[:, 2:3] * ndtr(z), z
+        cdf = ndtr(z)
+        return p[:, 0:1] + p[:, 1:2] * S + p[:, 2:3] * cdf, z, cdf
 
-    f, z = model(p)
+    f, z, cdf = model(p)
     r = y - f
     cost = np.sum(r * r, 1)
     eye = np.eye(5)[None]
     for _ in range(iterations):
         phi = _INV_SQRT_2PI * np.exp(-0.5 * z * z)
-        J = np.empty((n, m, 5))
-        J[..., 0] = 1.0
-        J[..., 1] = s[None, :]
-        J[..., 2] = ndtr(z)
-        J[..., 3] = -p[:, 2:3] * phi / p[:, 4:5]
-        J[..., 4] = -p[:, 2:3] * phi * z / p[:, 4:5]
-        A = np.einsum("nmi,nmj->nij", J, J)
-        gvec = np.einsum("nmi,nm->ni", J, r)
+        d3 = -p[:, 2:3] * phi / p[:, 4:5]
+        J = np.stack([ones, S, cdf, d3, d3 * z], 1)  # (n, 5, m)
+        A = J @ J.transpose(0, 2, 1)
+        gvec = (J @ r[:, :, None])[..., 0]
         diag = np.einsum("nii->ni", A)
-        A_d = A + lam[:, None, None] * eye * diag[:, :, None] + 1e-12 * eye
-        try:
-            step = np.linalg.solve(A_d, gvec[..., None])[..., 0]
-        except np.linalg.LinAlgError:
-            break
+        A_d = A + (lam[:, None] * diag + 1e-9)[:, :, None] * eye
+        step = np.linalg.solve(A_d, gvec[..., None])[..., 0]
         pn = p + step
         pn[:, 4] = np.clip(pn[:, 4], 0.15, 50.0)
-        fn, zn = model(pn)
+        fn, zn, cdfn = model(pn)
         rn = y - fn
         cn = np.sum(rn * rn, 1)
         better = cn < cost
-        p = np.where(better[:, None], pn, p)
-        z = np.where(better[:, None], zn, z)
-        r = np.where(better[:, None], rn, r)
+        b = better[:, None]
+        p = np.where(b, pn, p)
+        z = np.where(b, zn, z)
+        cdf = np.where(b, cdfn, cdf)
+        r = np.where(b, rn, r)
         cost = np.where(better, cn, cost)
-        lam = np.where(better, lam * 0.3, lam * 10.0)
+        lam = np.where(better, lam * 0.2, lam * 10.0)
     return p[:, 3], p[:, 4], p[:, 2], np.sqrt(cost / m)
 
 
@@ -111,12 +113,13 @@ def refine_edge(image: np.ndarray, conic: np.ndarray, spacing: float = 1.0, half
     C = conic
     width_est = 1.0
     fit: EdgeFit | None = None
-    for _ in range(passes):
+    for k in range(passes):
         try:
             e = Ellipse.from_conic(C)
         except ConicFitError as exc:
             raise EdgeError(str(exc)) from None
-        n = int(np.clip(e.perimeter / spacing, 24, 4000))
+        # early passes only re-centre the curve: sample them sparsely
+        n = int(np.clip(e.perimeter / (spacing * (4 if k < passes - 1 else 1)), 24, 4000))
         pts = e.sample(n)
         normals = conic_normals(C, pts)
         hw = half_window if half_window is not None else float(np.clip(3.0 * width_est + 3.0, 4.0, 25.0))

@@ -27,9 +27,10 @@ class DetectionParams:
     min_radius: float = 8.0  # px, smallest accepted semi-minor axis of an outer edge
     border_margin: float = 3.0  # px between any feature and the image border
     working_pixels: int = 1_000_000  # contour search on a copy downscaled to about this size
-    edge_spacing: float = 1.0  # px of arc per edge profile
+    edge_spacing: float = 1.5  # px of arc per edge profile
     curvature_correction: bool = True
     gamma: float = 1.0  # linearise intensities with this display gamma before locating edges
+    min_edge_strength: float = 4.0  # grey levels per px along a blob outline (print vs shading)
 
 
 @dataclass
@@ -100,8 +101,9 @@ def _to_float(image: np.ndarray) -> np.ndarray:
     return image.astype(np.float32)
 
 
-def find_blobs(gray: np.ndarray, params: DetectionParams) -> list[_Blob]:
-    """Elliptical dark blobs (with their elliptical holes), full-resolution coordinates."""
+def find_blobs(gray: np.ndarray, params: DetectionParams) -> tuple[list[_Blob], int]:
+    """Elliptical dark blobs (with their elliptical holes), full-resolution coordinates, and the
+    number of large non-elliptical dark shapes cut by the image border."""
     h, w = gray.shape
     scale = 1
     small = gray
@@ -109,40 +111,50 @@ def find_blobs(gray: np.ndarray, params: DetectionParams) -> list[_Blob]:
         small = cv2.pyrDown(small)
         scale *= 2
     small8 = np.clip(small, 0, 255).astype(np.uint8)
+    gx = cv2.Sobel(small, cv2.CV_32F, 1, 0, ksize=3)
+    gy = cv2.Sobel(small, cv2.CV_32F, 0, 1, ksize=3)
+    grad = cv2.magnitude(gx, gy) / 8.0  # grey levels per (working) pixel
     blobs: list[_Blob] = []
+    cut = 0
     for mode in ("otsu", "adaptive"):
         if mode == "otsu":
             _, mask = cv2.threshold(small8, 0, 255, cv2.THRESH_BINARY_INV | cv2.THRESH_OTSU)
         else:
             block = (max(small8.shape) // 8) | 1
             mask = cv2.adaptiveThreshold(small8, 255, cv2.ADAPTIVE_THRESH_MEAN_C, cv2.THRESH_BINARY_INV, block, 10)
-        blobs = _blobs_from_mask(mask, scale, w, h, params)
+        blobs, cut = _blobs_from_mask(mask, scale, w, h, params, grad)
         if any(b.holes for b in blobs) or mode == "adaptive":
             break
-    return blobs
+    return blobs, cut
 
 
-def _blobs_from_mask(mask: np.ndarray, scale: int, w: int, h: int, params: DetectionParams) -> list[_Blob]:
+def _blobs_from_mask(mask: np.ndarray, scale: int, w: int, h: int, params: DetectionParams,
+                     grad: np.ndarray) -> tuple[list[_Blob], int]:
     contours, hier = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
     if hier is None:
-        return []
+        return [], 0
     hier = hier[0]
     min_r = params.min_radius / scale
     out: list[_Blob] = []
+    cut = 0
     margin = params.border_margin
+    sh, sw = mask.shape
     for i, c in enumerate(contours):
         if hier[i][3] != -1 or len(c) < 12:
             continue  # holes are visited through their parent
         x, y, bw, bh = cv2.boundingRect(c)
         if min(bw, bh) < 2 * min_r:
             continue
+        at_border = x <= 1 or y <= 1 or x + bw >= sw - 1 or y + bh >= sh - 1
+        if float(np.median(grad[c[:, 0, 1], c[:, 0, 0]])) < params.min_edge_strength:
+            continue  # a soft shading boundary, not a printed edge
         pts = c[:, 0, :].astype(float) * scale + (scale - 1) / 2
         fit = _ellipse_of(pts)
-        if fit is None:
+        if fit is None or fit[1] > 0.03 * min(fit[0].a, fit[0].b) + 0.7 * scale:
+            if at_border and bw * bh < 0.5 * sw * sh:
+                cut += 1
             continue
         e, res = fit
-        if res > 0.03 * min(e.a, e.b) + 0.7 * scale:
-            continue
         touches = bool(pts[:, 0].min() < margin + scale or pts[:, 1].min() < margin + scale
                        or pts[:, 0].max() > w - 1 - margin - scale or pts[:, 1].max() > h - 1 - margin - scale)
         holes = []
@@ -156,7 +168,7 @@ def _blobs_from_mask(mask: np.ndarray, scale: int, w: int, h: int, params: Detec
                     holes.append((hp, hf[0]))
             j = hier[j][0]
         out.append(_Blob(pts, e, holes, touches, res))
-    return out
+    return out, cut
 
 
 def _edge(gray: np.ndarray, ellipse: Ellipse, params: DetectionParams) -> EdgeFit:
@@ -180,10 +192,10 @@ def detect_target(image: np.ndarray, target: Target, params: DetectionParams = D
     work = gray
     if params.gamma != 1.0:
         work = (255.0 * (np.clip(gray, 0, 255) / 255.0) ** params.gamma).astype(np.float32)
-    blobs = find_blobs(gray, params)
+    blobs, cut_shapes = find_blobs(gray, params)
     if target.rings:
         try:
-            ring_blob, hole = _pick_ring(blobs, target, params)
+            ring_blob, hole = _pick_ring(blobs, target, params, cut_shapes)
         except _Reject as r:
             det.reason = str(r)
             return det
@@ -224,7 +236,8 @@ class _Reject(Exception):
     pass
 
 
-def _pick_ring(blobs: list[_Blob], target: Target, params: DetectionParams) -> tuple[_Blob, Ellipse]:
+def _pick_ring(blobs: list[_Blob], target: Target, params: DetectionParams, cut_shapes: int = 0
+               ) -> tuple[_Blob, Ellipse]:
     ring = target.rings[0]
     ratio = ring.inner_radius / ring.outer_radius
     cands: list[tuple[float, _Blob, Ellipse]] = []
@@ -244,6 +257,9 @@ def _pick_ring(blobs: list[_Blob], target: Target, params: DetectionParams) -> t
     if not cands:
         if cut:
             raise _Reject("ring cut by the image border (keep the whole ring in view)")
+        if cut_shapes:
+            raise _Reject("no complete ring found; a dark shape is cut by the image border "
+                          "(target partly out of view?)")
         raise _Reject("no ring found")
     if len(cands) > 1:
         cands.sort(key=lambda c: -c[0])

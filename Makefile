@@ -1,0 +1,41 @@
+# Two entry points for a fresh machine: `make demo` and `make test`. Both create .venv on first use.
+PYTHON ?= $(shell command -v python3.11 || command -v python3)
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed-stamp
+export AMENT_PREFIX_PATH := $(abspath $(VENV))
+
+.PHONY: demo test lint typecheck unit bench study clean venv
+
+venv: $(STAMP)
+
+$(STAMP): requirements.txt setup.py setup.cfg package.xml
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -r requirements.txt
+	$(PY) -m pip install --quiet --no-deps -e .
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(PY) -m pascal_calib_ros.demo
+
+test: lint typecheck unit
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check pascal_calib_ros test
+
+typecheck: $(STAMP)
+	$(VENV)/bin/mypy pascal_calib_ros
+
+unit: $(STAMP)
+	$(PY) -m pytest -q test
+
+bench: $(STAMP)
+	$(VENV)/bin/pascal-calib bench
+
+study: $(STAMP)
+	$(VENV)/bin/pascal-calib study accuracy --out out/study
+	$(VENV)/bin/pascal-calib study edge-bias --out out/study
+
+clean:
+	rm -rf $(VENV) build install log *.egg-info demo_out out

@@ -1,0 +1,218 @@
+"""``pascal-calib``: offline calibration, synthetic sessions, studies and benchmarks.
+
+Exit codes: 0 success, 1 calibration not possible (too few views, degenerate set), 2 bad input
+(arguments, target file, images).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .calibrate.pipeline import METHODS, CalibrationError, CalibrationOptions, CalibrationResult, calibrate
+from .calibrate.refine import DISTORTION_MODELS
+from .detect.rings import Detection, DetectionParams, detect_target
+from .io.camera_yaml import CameraInfoData, write_camera_yaml
+from .io.images import ImageReadError, expand_image_args, read_grey
+from .targets import TargetError, resolve_target
+
+EXIT_OK, EXIT_CALIB, EXIT_INPUT = 0, 1, 2
+
+
+def _progress(enabled: bool, k: int, n: int, text: str) -> None:
+    if enabled:
+        sys.stderr.write(f"\r[{k}/{n}] {text[:70]:<70}")
+        sys.stderr.flush()
+        if k == n:
+            sys.stderr.write("\n")
+
+
+def detect_files(paths: list[Path], target_name: str, params: DetectionParams, progress: bool) -> list[Detection]:
+    target = resolve_target(target_name)
+    dets: list[Detection] = []
+    size: tuple[int, int] | None = None
+    for k, p in enumerate(paths, 1):
+        _progress(progress, k, len(paths), p.name)
+        try:
+            img = read_grey(p)
+        except ImageReadError as e:
+            d = Detection(0, 0, name=p.name, reason=str(e))
+            dets.append(d)
+            continue
+        if size is not None and (img.shape[1], img.shape[0]) != size:
+            dets.append(Detection(img.shape[1], img.shape[0], name=p.name,
+                                  reason=f"image size {img.shape[1]}x{img.shape[0]} differs from {size[0]}x{size[1]}"))
+            continue
+        size = (img.shape[1], img.shape[0])
+        dets.append(detect_target(img, target, params, name=p.name))
+    if size is not None:
+        for d in dets:
+            if d.width == 0:
+                d.width, d.height = size
+    return dets
+
+
+def format_summary(res: CalibrationResult) -> str:
+    lines = ["views:"]
+    for v in res.views:
+        if v.used:
+            extra = f"edge rms {v.rms:.3f} px, edge offset {v.edge_offset:+.3f} px" if np.isfinite(v.rms) else ""
+            lines.append(f"  used      {v.name}  {extra}")
+        else:
+            lines.append(f"  rejected  {v.name}  {v.reason}")
+    K, D, s = res.K, res.D, res.std
+
+    def pm(name: str, value: float) -> str:
+        return f"{value:.3f} +- {s[name]:.3f}" if name in s else f"{value:.3f}"
+
+    lines += [
+        f"method: {res.method}{' + refinement' if res.refined and res.method != 'zhang' else ''}"
+        f"    views used: {res.n_used}/{len(res.views)}",
+        f"RMS: {res.rms:.4f} px" + ("  (edge distance)" if res.method != "zhang" else "  (corner reprojection)"),
+        f"degeneracy ratio: {res.degeneracy_ratio:.4f}  (>= 0.05 good, < 0.01 rejected)"
+        if np.isfinite(res.degeneracy_ratio) else "degeneracy ratio: n/a",
+        f"fx = {pm('fx', K[0, 0])}   fy = {pm('fy', K[1, 1])}",
+        f"cx = {pm('cx', K[0, 2])}   cy = {pm('cy', K[1, 2])}   skew = {K[0, 1]:.4f}",
+        "D (k1 k2 p1 p2 k3) = " + "  ".join(pm(n, v) for n, v in zip(("k1", "k2", "p1", "p2", "k3"), D, strict=True)),
+    ]
+    lines += [f"warning: {w}" for w in res.warnings]
+    return "\n".join(lines)
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    try:
+        target = resolve_target(args.target)
+    except TargetError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return EXIT_INPUT
+    method = args.method or target.default_method()
+    if not args.method:
+        print(f"method: {method} (default for target {target.name})")
+    paths = expand_image_args(args.images)
+    if not paths:
+        print("error: no images given", file=sys.stderr)
+        return EXIT_INPUT
+    params = DetectionParams(gamma=args.gamma, max_blur=args.max_blur)
+    t0 = time.perf_counter()
+    dets = detect_files(paths, args.target, params, progress=sys.stderr.isatty())
+    t_detect = time.perf_counter() - t0
+    opts = CalibrationOptions(method=method, refine=not args.no_refine, distortion=args.distortion,
+                              zero_skew=not args.skew, edge_offsets=not args.no_edge_offset,
+                              min_views=args.min_views)
+    t1 = time.perf_counter()
+    try:
+        res = calibrate(dets, target, opts)
+    except CalibrationError as e:
+        for d in dets:
+            if not d.ok:
+                print(f"  rejected  {d.name}  {d.reason}")
+        print(f"error: calibration failed: {e}", file=sys.stderr)
+        print("no calibration written", file=sys.stderr)
+        return EXIT_CALIB
+    t_cal = time.perf_counter() - t1
+    print(format_summary(res))
+    print(f"time: detection {t_detect:.2f} s ({len(paths)} images), calibration {t_cal:.2f} s")
+    info = CameraInfoData(res.width, res.height, args.camera_name, res.K, res.D, "plumb_bob")
+    out = write_camera_yaml(args.output, info)
+    print(f"wrote {out}")
+    return EXIT_OK
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    from .sim.session import SessionSpec, render_session
+
+    try:
+        target = resolve_target(args.target)
+    except TargetError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return EXIT_INPUT
+    w, h = (int(v) for v in args.size.lower().split("x"))
+    spec = SessionSpec(width=w, height=h, focal=args.focal, k1=args.k1, views=args.views, blur=args.blur,
+                       gamma=args.gamma, noise=args.noise, jpeg=args.jpeg, seed=args.seed,
+                       cut_views=args.cut_views, empty_views=args.empty_views, defocused_views=args.defocused_views)
+    paths = render_session(target, spec, Path(args.out), progress=sys.stderr.isatty())
+    print(f"wrote {len(paths)} images and ground truth to {args.out}")
+    return EXIT_OK
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from .sim.bench import run_bench
+
+    result = run_bench(quick=args.quick, print_table=not args.json)
+    if args.json:
+        print(json.dumps(result))
+    return EXIT_OK
+
+
+def cmd_study(args: argparse.Namespace) -> int:
+    from .sim.study import run_study
+
+    run_study(args.name, Path(args.out), views=args.views, seed=args.seed)
+    return EXIT_OK
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="pascal-calib", description=__doc__.splitlines()[0])
+    sub = ap.add_subparsers(dest="command", required=True)
+
+    c = sub.add_parser("calibrate", help="calibrate from image files; writes camera_calibration_parsers YAML")
+    c.add_argument("--target", required=True, help="target YAML file or packaged name (ring_a4, pascal_board_a3)")
+    c.add_argument("--method", choices=METHODS, help="default: the target's natural method (ring for a ring)")
+    c.add_argument("--camera-name", default="camera")
+    c.add_argument("-o", "--output", required=True, help="output YAML path")
+    c.add_argument("--distortion", default="plumb_bob", choices=sorted(DISTORTION_MODELS))
+    c.add_argument("--no-refine", action="store_true", help="closed form only (no distortion)")
+    c.add_argument("--no-edge-offset", action="store_true", help="do not estimate the per-view edge offset")
+    c.add_argument("--skew", action="store_true", help="estimate skew (default: zero skew)")
+    c.add_argument("--gamma", type=float, default=1.0, help="linearise with this display gamma before edges")
+    c.add_argument("--max-blur", type=float, default=4.0, help="reject views whose edges are wider (px)")
+    c.add_argument("--min-views", type=int, default=3)
+    c.add_argument("images", nargs="+", help="image files or folders")
+    c.set_defaults(func=cmd_calibrate)
+
+    r = sub.add_parser("render", help="render a synthetic session with ground truth")
+    r.add_argument("--target", default="ring_a4")
+    r.add_argument("--out", required=True)
+    r.add_argument("--size", default="800x600")
+    r.add_argument("--focal", type=float, default=0.0, help="px (default: image width)")
+    r.add_argument("--k1", type=float, default=0.0)
+    r.add_argument("--views", type=int, default=12)
+    r.add_argument("--blur", type=float, default=1.0)
+    r.add_argument("--gamma", type=float, default=2.2)
+    r.add_argument("--noise", type=float, default=1.5)
+    r.add_argument("--jpeg", type=int, default=0, help="JPEG quality (0: PNG)")
+    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--cut-views", type=int, default=0, help="extra views with the target cut by the frame")
+    r.add_argument("--empty-views", type=int, default=0, help="extra views without any target")
+    r.add_argument("--defocused-views", type=int, default=0, help="extra strongly defocused views")
+    r.set_defaults(func=cmd_render)
+
+    b = sub.add_parser("bench", help="timings: detection vs cv2.Canny, calibration vs view count")
+    b.add_argument("--json", action="store_true")
+    b.add_argument("--quick", action="store_true", help="fewer repetitions")
+    b.set_defaults(func=cmd_bench)
+
+    s = sub.add_parser("study", help="accuracy studies against ground truth (see README)")
+    s.add_argument("name", choices=["accuracy", "edge-bias"])
+    s.add_argument("--out", default="out/study")
+    s.add_argument("--views", type=int, default=15)
+    s.add_argument("--seed", type=int, default=1)
+    s.set_defaults(func=cmd_study)
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    if getattr(args, "min_views", 3) < 3:
+        print("error: --min-views must be at least 3", file=sys.stderr)
+        return EXIT_INPUT
+    return int(args.func(args))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,145 @@
+"""Accuracy studies against ground truth (``pascal-calib study NAME``); figures in the README.
+
+- ``accuracy``: ring-only calibration (closed form + refinement) against OpenCV
+  ``calibrateCamera`` on a checkerboard rendered from the same poses, per scenario.
+- ``edge-bias``: what the edge-bias handling is worth (per-view offset, gamma linearisation,
+  curvature correction), on one realistic scenario.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import sys
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..calibrate.pipeline import CalibrationError, CalibrationOptions, calibrate
+from ..detect.rings import DetectionParams, detect_target
+from ..geometry.camera import Camera, model_error
+from ..targets import resolve_target
+from .render import render_view
+from .session import SessionSpec, session_views
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    spec: SessionSpec
+
+
+SCENARIOS = (
+    Scenario("800x600, no distortion", SessionSpec(width=800, height=600, blur=1.0)),
+    Scenario("800x600, k1=-0.3", SessionSpec(width=800, height=600, k1=-0.3, blur=1.0)),
+    Scenario("800x600, k1=-0.3, blur 1.5, JPEG 90", SessionSpec(width=800, height=600, k1=-0.3, blur=1.5, jpeg=90)),
+    Scenario("1920x1080, k1=-0.3", SessionSpec(width=1920, height=1080, k1=-0.3, blur=1.2)),
+    Scenario("2456x2058, k1=-0.2", SessionSpec(width=2456, height=2058, k1=-0.2, blur=1.2)),
+)
+
+
+def _errors(truth: Camera, K: np.ndarray, D: np.ndarray) -> dict[str, float]:
+    est = Camera(K, D, truth.width, truth.height)
+    return {
+        "fx_err_pct": 100 * (K[0, 0] / truth.K[0, 0] - 1),
+        "fy_err_pct": 100 * (K[1, 1] / truth.K[1, 1] - 1),
+        "pp_err_px": float(np.hypot(K[0, 2] - truth.K[0, 2], K[1, 2] - truth.K[1, 2])),
+        "model_err_px": model_error(truth, est, truth.width, truth.height),
+    }
+
+
+def _render_pair(spec: SessionSpec, seed: int) -> tuple[Camera, list[np.ndarray], list[np.ndarray]]:
+    """Ring and checkerboard images from the same poses (poses chosen with the larger board)."""
+    ring, board = resolve_target("ring_a4"), resolve_target("checkerboard_a4")
+    spec = replace(spec, seed=seed)
+    cam = spec.camera()
+    ring_imgs, board_imgs = [], []
+    for _, pose, sens in session_views(board, spec):
+        ring_imgs.append(render_view(ring, cam, pose, sens).image)
+        board_imgs.append(render_view(board, cam, pose, sens).image)
+    return cam, ring_imgs, board_imgs
+
+
+def accuracy(out: Path, views: int, seed: int) -> list[dict[str, Any]]:
+    ring, board = resolve_target("ring_a4"), resolve_target("checkerboard_a4")
+    rows: list[dict[str, Any]] = []
+    for sc in SCENARIOS:
+        sys.stderr.write(f"rendering {sc.name} ...\n")
+        cam, ring_imgs, board_imgs = _render_pair(replace(sc.spec, views=views), seed)
+        ring_dets = [detect_target(im, ring, name=f"v{k}") for k, im in enumerate(ring_imgs)]
+        board_dets = [detect_target(im, board, name=f"v{k}") for k, im in enumerate(board_imgs)]
+        for label, dets, target, opt in (
+            ("ring closed form", ring_dets, ring, CalibrationOptions(refine=False)),
+            ("ring refined", ring_dets, ring, CalibrationOptions()),
+            ("OpenCV checkerboard", board_dets, board, CalibrationOptions(method="zhang")),
+        ):
+            try:
+                res = calibrate(dets, target, opt)
+                err = _errors(cam, res.K, res.D)
+                rows.append({"scenario": sc.name, "method": label, "views": res.n_used, **err, "rms": res.rms})
+            except CalibrationError as e:
+                rows.append({"scenario": sc.name, "method": label, "views": 0, "error": str(e)})
+    _write(rows, out, "accuracy")
+    return rows
+
+
+def edge_bias(out: Path, views: int, seed: int) -> list[dict[str, Any]]:
+    ring = resolve_target("ring_a4")
+    spec = SessionSpec(width=800, height=600, k1=-0.3, blur=1.2, gamma=2.2, views=views, seed=seed)
+    cam = spec.camera()
+    imgs = [render_view(ring, cam, pose, sens).image for _, pose, sens in session_views(ring, spec)]
+    variants = (
+        ("no bias handling", DetectionParams(), False),
+        ("per-view edge offset (default)", DetectionParams(), True),
+        ("gamma linearised (known 2.2), no offset", DetectionParams(gamma=2.2), False),
+        ("gamma linearised + offset", DetectionParams(gamma=2.2), True),
+        ("offset, no curvature correction", DetectionParams(curvature_correction=False), True),
+        ("no offset, no curvature correction", DetectionParams(curvature_correction=False), False),
+    )
+    rows: list[dict[str, Any]] = []
+    for label, params, offsets in variants:
+        dets = [detect_target(im, ring, params) for im in imgs]
+        try:
+            res = calibrate(dets, ring, CalibrationOptions(edge_offsets=offsets))
+            rows.append({"variant": label, **_errors(cam, res.K, res.D), "rms": res.rms,
+                         "mean_offset_px": float(np.nanmean([v.edge_offset for v in res.views if v.used]))})
+        except CalibrationError as e:
+            rows.append({"variant": label, "error": str(e)})
+    _write(rows, out, "edge_bias")
+    return rows
+
+
+def _write(rows: list[dict[str, Any]], out: Path, name: str) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    keys: list[str] = []
+    for r in rows:
+        keys += [k for k in r if k not in keys]
+    with open(out / f"{name}.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=keys)
+        w.writeheader()
+        w.writerows(rows)
+    (out / f"{name}.json").write_text(json.dumps(rows, indent=1))
+    print(markdown_table(rows, keys))
+    print(f"\nwrote {out / name}.csv")
+
+
+def markdown_table(rows: list[dict[str, Any]], keys: list[str]) -> str:
+    def fmt(v: Any) -> str:
+        if isinstance(v, float):
+            return f"{v:.4f}" if abs(v) < 10 else f"{v:.1f}"
+        return str(v)
+
+    lines = ["| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
+    lines += ["| " + " | ".join(fmt(r.get(k, "")) for k in keys) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def run_study(name: str, out: Path, views: int = 15, seed: int = 1) -> None:
+    if name == "accuracy":
+        accuracy(out, views, seed)
+    elif name == "edge-bias":
+        edge_bias(out, views, seed)
+    else:
+        raise ValueError(f"unknown study {name!r}")
