@@ -13,6 +13,7 @@ import numpy as np
 from ..detect.rings import Detection
 from ..geometry.camera import rodrigues, rotation_to_rvec
 from ..geometry.circular import (
+    PT1_STARTS,
     CircularPointError,
     centre_image_from_ring,
     circular_point_pt2,
@@ -45,7 +46,13 @@ def circular_point_of_view(det: Detection, target: Target, method: str) -> np.nd
         c = centre_image_from_ring(e_out.conic, e_in.conic)
         line = vanishing_line_from_centre(e_out.conic, c)
         pts = pascal_points(e_out.conic)
-        res = circular_point_pt2(pts, line) if method == "pt2" else circular_points_pt1(pts, line)
+        if method == "pt2":
+            res = circular_point_pt2(pts, line)
+        else:
+            for start in PT1_STARTS:  # pt1 may collapse to i' = j': try further starts
+                res = circular_points_pt1(pts, line, start)
+                if res.converged:
+                    break
         if not res.converged:
             raise CircularPointError(f"{method} Newton did not converge to a circular point")
         return res.point

@@ -127,12 +127,12 @@ def circular_point_pt2(points5: np.ndarray, line: np.ndarray, start: complex | N
     i' = u + t v on the vanishing line, t complex; the Pascal determinant is a polynomial in t
     (quadratic: its roots are i' and j'), so Newton is run in complex arithmetic. It must not start
     on the real axis (the iterates would stay real). ``points5`` are (5, 2) image points on the
-    conic; ``start`` is t0 (default: 1j times the distance scale of the points from the line)."""
+    conic; ``start`` is t0 in units of the points' mean distance from the line's foot point in
+    normalised coordinates (default 1j)."""
     pts, line_n, T = _prepare(points5, line)
     u, v = _line_basis(line_n)
-    if start is None:
-        start = 1j * float(np.mean([np.linalg.norm(p[:2] - u[:2]) for p in pts]))
-    t = complex(start)
+    scale_d = float(np.mean([np.linalg.norm(p[:2] - u[:2]) for p in pts]))
+    t = complex(1j if start is None else start) * scale_d
     if abs(t.imag) < 1e-12:
         raise ValueError("pt2 Newton must not start on the real axis")
 
@@ -163,13 +163,16 @@ def circular_points_pt1(points5: np.ndarray, line: np.ndarray, start: complex | 
     """PT1 (seed paper, Proposition 2) made well-posed: i' = u + t v on the vanishing line,
     j' = conj(i'), and two hexagons (a, b, c, d, i', j') and (a, c, d, e, i', j') sharing three
     conic points. Real Gauss-Newton over (Re t, Im t) on the four real residuals. It can collapse
-    to i' = j' (Im t -> 0, where both conditions vanish trivially): ``converged`` is False then."""
+    to i' = j' (Im t -> 0, where both conditions vanish trivially): ``converged`` is False then.
+    ``start`` as in :func:`circular_point_pt2`. From random starts Re, Im ~ N(0,1), U(0.2, 3) it
+    reaches i' in about 3 of 4 cases (test_circular.py measures it); :data:`PT1_STARTS` are tried
+    in turn by the calibration pipeline."""
     pts, line_n, T = _prepare(points5, line)
     a, b, c, d, e = pts
     u, v = _line_basis(line_n)
-    if start is None:
-        start = 1j * float(np.mean([np.linalg.norm(p[:2] - u[:2]) for p in pts]))
-    z = np.array([complex(start).real, complex(start).imag])
+    scale_d = float(np.mean([np.linalg.norm(p[:2] - u[:2]) for p in pts]))
+    t0 = complex(1j if start is None else start) * scale_d
+    z = np.array([t0.real, t0.imag])
 
     def res(zz: np.ndarray) -> np.ndarray:
         t = complex(zz[0], zz[1])
@@ -196,6 +199,9 @@ def circular_points_pt1(points5: np.ndarray, line: np.ndarray, start: complex | 
     collapsed = abs(t.imag) < 1e-6 * max(abs(t), 1.0)
     ok = bool(np.all(np.isfinite(z))) and not collapsed
     return NewtonResult(_denormalize(u + t * v, T), it, ok)
+
+
+PT1_STARTS = (1j, 2j, 0.5 + 0.5j, -1 + 1j, 1 + 3j, 4j)
 
 
 def _split_degenerate_conic(D: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:

@@ -47,6 +47,9 @@ def fit_conic_algebraic(pts: np.ndarray) -> np.ndarray:
     pts = np.asarray(pts, float)
     if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 5:
         raise ConicFitError(f"need at least 5 points (N, 2) to fit a conic, got {pts.shape}")
+    sv = np.linalg.svd(pts - pts.mean(axis=0), compute_uv=False)
+    if sv[1] < 1e-9 * max(sv[0], 1e-300):
+        raise ConicFitError("points are degenerate (collinear or repeated)")
     T = _norm_transform(pts)
     p = pts @ T[:2, :2].T + T[:2, 2]
     x, y = p[:, 0], p[:, 1]

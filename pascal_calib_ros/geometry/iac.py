@@ -65,7 +65,7 @@ def degeneracy_ratio(A: np.ndarray) -> float:
     """Smallest non-null singular value over the largest (5th/1st for 6 unknowns)."""
     s = np.linalg.svd(A, compute_uv=False)
     n = A.shape[1]
-    if len(s) < n:
+    if len(s) < n - 1:
         return 0.0
     return float(s[n - 2] / s[0])
 
@@ -100,6 +100,8 @@ def iac_from_circular_points(points: list[np.ndarray], width: float, height: flo
             f"capture at least {needed} views with the target at different tilts")
     T = image_normalization(width, height)
     A = constraint_matrix(points, T, zero_skew)
+    if not np.all(np.isfinite(A)):
+        raise DegenerateViewsError("a circular point is at infinity or invalid (fronto-parallel view?)")
     ratio = degeneracy_ratio(A)
     if ratio < DEGENERACY_REJECT:
         raise DegenerateViewsError(

@@ -1,0 +1,64 @@
+import numpy as np
+import pytest
+
+from pascal_calib_ros.geometry.conic import (
+    ConicFitError,
+    Ellipse,
+    conic_curvature,
+    fit_conic,
+    fit_conic_algebraic,
+    line_conic_intersection,
+    normalize_conic,
+    sampson_distance,
+)
+
+
+def test_fit_recovers_exact_ellipse() -> None:
+    e = Ellipse(310.0, 240.0, 120.0, 70.0, 0.4)
+    pts = e.sample(40)
+    C = fit_conic(pts)
+    assert np.allclose(C, e.to_conic(), atol=1e-10)
+    back = Ellipse.from_conic(C)
+    assert np.allclose([back.cx, back.cy, back.a, back.b], [310, 240, 120, 70], atol=1e-7)
+
+
+def test_geometric_refinement_beats_algebraic_on_noisy_partial_arc() -> None:
+    e = Ellipse(300.0, 200.0, 150.0, 60.0, 0.3)
+    rng = np.random.default_rng(3)
+    errs_alg, errs_geo = [], []
+    for _ in range(20):
+        t = rng.uniform(0, 2.5, 60)
+        pts = np.stack([e.cx + e.a * np.cos(t) * np.cos(e.angle) - e.b * np.sin(t) * np.sin(e.angle),
+                        e.cy + e.a * np.cos(t) * np.sin(e.angle) + e.b * np.sin(t) * np.cos(e.angle)], 1)
+        pts += rng.normal(0, 0.5, pts.shape)
+        truth = e.sample(200)
+        errs_alg.append(np.sqrt(np.mean(sampson_distance(fit_conic_algebraic(pts), truth) ** 2)))
+        errs_geo.append(np.sqrt(np.mean(sampson_distance(fit_conic(pts), truth) ** 2)))
+    assert np.median(errs_geo) < np.median(errs_alg)
+
+
+def test_degenerate_points_raise() -> None:
+    with pytest.raises(ConicFitError):
+        fit_conic(np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 2.0], [3.0, 3.0], [4.0, 4.0], [5.0, 5.0]]))
+    with pytest.raises(ConicFitError):
+        fit_conic(np.zeros((3, 2)))
+
+
+def test_normalisation_fixes_scale_and_sign() -> None:
+    C = Ellipse(1, 2, 3, 2, 0.1).to_conic()
+    assert np.allclose(normalize_conic(-5 * C), C)
+    assert np.isclose(np.linalg.norm(C), 1) and C[0, 0] + C[1, 1] > 0
+
+
+def test_curvature_of_a_circle() -> None:
+    C = Ellipse(0, 0, 50.0, 50.0, 0).to_conic()
+    pts = Ellipse(0, 0, 50.0, 50.0, 0).sample(10)
+    assert np.allclose(conic_curvature(C, pts), 1 / 50.0)
+
+
+def test_line_misses_circle_in_complex_points() -> None:
+    C = Ellipse(0, 0, 1.0, 1.0, 0).to_conic()
+    p, q = line_conic_intersection(np.array([0.0, 1.0, -2.0]), C)  # y = 2
+    for r in (p, q):
+        r = r / r[2]
+        assert abs(r[1] - 2) < 1e-12 and abs(r[0] ** 2 + r[1] ** 2 - 1) < 1e-12 and abs(r[0].imag) > 1
