@@ -1,0 +1,80 @@
+"""The ``pascal-calib`` command as a user runs it (a real subprocess)."""
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from pascal_calib_ros.demo import compare
+
+
+def run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    exe = shutil.which("pascal-calib", path=str(Path(sys.executable).parent)) or "pascal-calib"
+    return subprocess.run([exe, *args], capture_output=True, text=True, cwd=cwd, timeout=600,
+                          env={**os.environ, "PYTHONWARNINGS": "ignore"})
+
+
+@pytest.fixture(scope="module")
+def session_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("session")
+    r = run("render", "--target", "ring_a4", "--out", str(out), "--size", "640x480", "--views", "8", "--k1", "-0.2",
+            "--empty-views", "1", "--seed", "4")
+    assert r.returncode == 0, r.stderr
+    return out
+
+
+def test_render_writes_images_and_ground_truth(session_dir: Path) -> None:
+    truth = json.loads((session_dir / "session.json").read_text())
+    assert len(truth["images"]) == 9 and truth["width"] == 640
+    assert (session_dir / "view_000.json").exists()
+
+
+def test_calibrate_writes_yaml_and_reports_each_view(session_dir: Path, tmp_path: Path) -> None:
+    (session_dir / "corrupt.png").write_bytes(b"\x89PNG not really")
+    out = tmp_path / "cam.yaml"
+    r = run("calibrate", "--target", "ring_a4", "--camera-name", "test_cam", "-o", str(out), str(session_dir))
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "method: ring (default for target ring_a4)" in r.stdout
+    assert "rejected  corrupt.png  " in r.stdout and "not a readable image" in r.stdout
+    assert "rejected  empty_000.png  no ring found" in r.stdout
+    assert "fx = " in r.stdout and "+-" in r.stdout and "degeneracy ratio" in r.stdout
+    doc = yaml.safe_load(out.read_text())
+    assert doc["camera_name"] == "test_cam" and doc["distortion_model"] == "plumb_bob"
+    err = compare(session_dir / "session.json", out)
+    assert abs(err["fx_err_pct"]) < 0.1 and abs(err["cx_err_px"]) < 1 and abs(err["cy_err_px"]) < 1
+
+
+def test_too_few_views_exit_nonzero_and_write_nothing(session_dir: Path, tmp_path: Path) -> None:
+    out = tmp_path / "cam.yaml"
+    r = run("calibrate", "--target", "ring_a4", "-o", str(out), str(session_dir / "view_000.png"),
+            str(session_dir / "view_001.png"), str(session_dir / "empty_000.png"))
+    assert r.returncode == 1
+    assert "need at least 3" in r.stderr and "no calibration written" in r.stderr
+    assert not out.exists()
+
+
+def test_bad_target_and_missing_images(session_dir: Path, tmp_path: Path) -> None:
+    bad = tmp_path / "t.yaml"
+    bad.write_text("name: x\nsheet: {width: 0.2, height: 0.2}\nfeatures: [{type: ring, center: [0.1, 0.1], "
+                   "outer_radius: 0.05, inner_radius: 0.06}]\n")
+    r = run("calibrate", "--target", str(bad), "-o", str(tmp_path / "c.yaml"), str(session_dir))
+    assert r.returncode == 2 and "inner_radius" in r.stderr
+    r = run("calibrate", "--target", "ring_a4", "-o", str(tmp_path / "c.yaml"), str(tmp_path / "nope.png"),
+            str(tmp_path / "nope2.png"), str(tmp_path / "nope3.png"))
+    assert r.returncode == 1 and "no such file" in r.stdout
+    r = run("calibrate", "--target", "ring_a4", "--method", "zhang", "-o", str(tmp_path / "c.yaml"), str(session_dir))
+    assert r.returncode == 1 and "zhang" in r.stderr and "supports: ring" in r.stderr
+
+
+def test_bench_json_shape() -> None:
+    r = run("bench", "--json", "--quick")
+    assert r.returncode == 0, r.stderr
+    data = json.loads(r.stdout)
+    assert [d["size"] for d in data["detect"]] == ["800x600", "1920x1080", "2456x2058"]
+    assert all(d["detect_ms"] > 0 and d["canny_ms"] > 0 for d in data["detect"])
+    assert [c["views"] for c in data["calibrate"]] == [3, 10, 20]
