@@ -54,7 +54,8 @@ def main() -> int:
     print(f"  fx {err['fx_err_pct']:+.4f} %   fy {err['fy_err_pct']:+.4f} %   "
           f"principal point ({err['cx_err_px']:+.2f}, {err['cy_err_px']:+.2f}) px   "
           f"model error {err['model_err_px']:.3f} px RMS over the image")
-    ok = abs(err["fx_err_pct"]) < 0.1 and abs(err["fy_err_pct"]) < 0.1 and np.hypot(err["cx_err_px"], err["cy_err_px"]) < 1
+    pp = float(np.hypot(err["cx_err_px"], err["cy_err_px"]))
+    ok = abs(err["fx_err_pct"]) < 0.1 and abs(err["fy_err_pct"]) < 0.1 and pp < 1
     print("demo: OK" if ok else "demo: accuracy outside the documented bounds")
     return 0 if ok else 1
 

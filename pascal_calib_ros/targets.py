@@ -237,8 +237,8 @@ def _check_layout(t: Target) -> None:
             if np.hypot(c1[0] - c2[0], c1[1] - c2[1]) <= r1 + r2:
                 raise TargetError(f"{t.source}: {n1} and {n2} overlap; circles must be separated")
     for name, (x0, y0, x1, y1) in shapes[len(circles):]:
-        for c, r, n in circles:
-            if x0 - r < c[0] < x1 + r and y0 - r < c[1] < y1 + r:
+        for c, rad, n in circles:
+            if x0 - rad < c[0] < x1 + rad and y0 - rad < c[1] < y1 + rad:
                 raise TargetError(f"{t.source}: {n} overlaps the {name}")
 
 

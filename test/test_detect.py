@@ -67,7 +67,7 @@ def test_random_images_never_raise(ring_target: Target, board_target: Target) ->
 
 
 def test_board_gives_ring_disc_and_ordered_corners(board_target: Target, board_session) -> None:
-    cam, _, dets = board_session
+    _cam, _, dets = board_session
     assert all(d.ok for d in dets), [d.reason for d in dets]
     assert all(d.corners is not None for d in dets)
     import cv2

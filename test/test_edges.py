@@ -11,7 +11,7 @@ def test_step_fit_recovers_position_and_width() -> None:
     s0 = rng.uniform(-1, 1, 200)
     w = rng.uniform(0.6, 2.0, 200)
     prof = 60 + 0.5 * s[None, :] + 150 * ndtr((s[None, :] - s0[:, None]) / w[:, None])
-    est_s0, est_w, est_c, rms = fit_step_profiles(prof + rng.normal(0, 0.5, prof.shape), s)
+    est_s0, est_w, est_c, _rms = fit_step_profiles(prof + rng.normal(0, 0.5, prof.shape), s)
     assert np.sqrt(np.mean((est_s0 - s0) ** 2)) < 0.02
     assert np.sqrt(np.mean((est_w - w) ** 2)) < 0.05
     assert np.allclose(est_c, 150, rtol=0.05)

@@ -165,8 +165,8 @@ def _in_plane_rotation(det: Detection, target: Target, K: np.ndarray, R: np.ndar
         ref.extend(target.checkerboard.corner_points() - np.array(ref_centre))
     if not obs:
         return R
-    O, P = np.array(obs), np.array(ref)
-    ang = np.arctan2(np.sum(P[:, 0] * O[:, 1] - P[:, 1] * O[:, 0]), np.sum(P[:, 0] * O[:, 0] + P[:, 1] * O[:, 1]))
+    ob, P = np.array(obs), np.array(ref)
+    ang = np.arctan2(np.sum(P[:, 0] * ob[:, 1] - P[:, 1] * ob[:, 0]), np.sum(P[:, 0] * ob[:, 0] + P[:, 1] * ob[:, 1]))
     # plane coords o = Rz(ang) p: the target's x axis appears rotated by ang in the plane basis
     return R @ rodrigues(np.array([0.0, 0.0, ang]))
 

@@ -18,7 +18,7 @@ from .initial import CIRCLE_METHODS, intrinsics_closed_form, pose_from_view, pos
 from .refine import DISTORTION_MODELS, INTRINSIC_NAMES, RefineResult, ViewData, refine
 from .zhang import calibrate_zhang
 
-METHODS = CIRCLE_METHODS + ("zhang",)
+METHODS = (*CIRCLE_METHODS, "zhang")
 MIN_VIEWS = 3
 
 

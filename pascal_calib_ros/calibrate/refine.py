@@ -13,8 +13,9 @@ the image of its circle, plus the reprojection error of checkerboard corners if 
   absorbs the bias (PAPER.md: 0.02 px of bias moves f by ~0.7 %).
 
 Poses have 6 dof (rvec, t) or 5 for a target with a single circle centre (rotation about the
-ring's axis unobservable). Solved by Levenberg-Marquardt with IRLS weights; Jacobians by forward differences grouped by the
-block structure (intrinsics x all rows, each view's parameters x its rows only).
+ring's axis unobservable). Solved by Levenberg-Marquardt with IRLS weights; Jacobians by forward
+differences grouped by the block structure (intrinsics x all rows, each view's parameters x its
+rows only).
 """
 
 from __future__ import annotations
@@ -112,7 +113,7 @@ class Problem:
     # -- parameter packing -------------------------------------------------------------
     def pack(self, intr: np.ndarray, poses: list[np.ndarray], offsets: np.ndarray) -> np.ndarray:
         per = [np.concatenate([p, [o]]) if self.use_offsets else p for p, o in zip(poses, offsets, strict=True)]
-        return np.concatenate([intr[self.free]] + per)
+        return np.concatenate([intr[self.free], *per])
 
     def unpack(self, x: np.ndarray, intr0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         intr = intr0.copy()
@@ -241,7 +242,7 @@ def levenberg_marquardt(prob: Problem, x0: np.ndarray, intr0: np.ndarray, loss_s
     J = np.zeros((len(f), len(x)))
     w = np.ones(len(f))
     it = 0
-    for it in range(1, max_iter + 1):
+    for it in range(1, max_iter + 1):  # noqa: B007 (the count is reported)
         J, n = _jacobian(prob.residuals, x, f, prob, intr0)
         nfev += n
         w = 1.0 / np.sqrt(1 + (f / loss_scale) ** 2)
@@ -289,8 +290,8 @@ def refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[n
     prob = Problem(views, dof, free, use_offsets, loss_scale)
     intr0 = np.array([K0[0, 0], K0[1, 1], K0[0, 2], K0[1, 2], 0.0 if zero_skew else K0[0, 1], *np.asarray(D0, float)])
     for name in INTRINSIC_NAMES[5:]:
-        if name not in free:
-            intr0[INTRINSIC_NAMES.index(name)] = 0.0 if name not in DISTORTION_MODELS[distortion] else intr0[INTRINSIC_NAMES.index(name)]
+        if name not in free:  # coefficients the model does not estimate are held at zero
+            intr0[INTRINSIC_NAMES.index(name)] = 0.0
     x0 = prob.pack(intr0, poses0, np.zeros(len(views)))
     sol = levenberg_marquardt(prob, x0, intr0, loss_scale, max_iter=max_iter)
     intr, poses, offsets = prob.unpack(sol.x, intr0)

@@ -30,7 +30,8 @@ def calibrate_zhang(dets: list[Detection], target: Target, distortion: str = "pl
     elif distortion == "none":
         flags |= cv2.CALIB_FIX_K1 | cv2.CALIB_FIX_K2 | cv2.CALIB_FIX_K3 | cv2.CALIB_ZERO_TANGENT_DIST
     imgpts = [dets[k].corners.astype(np.float32).reshape(-1, 1, 2) for k in used]  # type: ignore[union-attr]
-    out = cv2.calibrateCameraExtended([obj] * len(used), imgpts, (w, h), None, None, flags=flags)
+    out = cv2.calibrateCameraExtended([obj] * len(used), imgpts, (w, h), None, None,  # type: ignore[call-overload]
+                                      flags=flags)
     rms, K, D = out[0], out[1], out[2]
     std = np.asarray(out[5]).ravel()[:9]
     return K, np.asarray(D).ravel()[:5], float(rms), used, std

@@ -276,9 +276,9 @@ def _pick_disc(blobs: list[_Blob], ring_blob: _Blob, target: Target, params: Det
     best: tuple[float, _Blob] | None = None
     cut = False
     for b in blobs:
-        if b is ring_blob or b.holes and any(np.sqrt(e.a * e.b) > 0.2 * np.sqrt(b.ellipse.a * b.ellipse.b) for _, e in b.holes):
-            continue
         size = np.sqrt(b.ellipse.a * b.ellipse.b)
+        if b is ring_blob or any(np.sqrt(e.a * e.b) > 0.2 * size for _, e in b.holes):
+            continue
         if size < params.min_radius or b.fit_residual > 0.02 * size + 0.7:
             continue
         sr = size / rs

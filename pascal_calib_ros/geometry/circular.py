@@ -137,7 +137,7 @@ def circular_point_pt2(points5: np.ndarray, line: np.ndarray, start: complex | N
         raise ValueError("pt2 Newton must not start on the real axis")
 
     def f(tt: complex) -> complex:
-        return pascal_condition(pts + [u + tt * v])
+        return pascal_condition([*pts, u + tt * v])
 
     scale = max(abs(t), 1.0)
     for it in range(1, max_iter + 1):
@@ -183,7 +183,7 @@ def circular_points_pt1(points5: np.ndarray, line: np.ndarray, start: complex | 
         return np.array([r1.real, r1.imag, r2.real, r2.imag])
 
     scale = max(float(np.linalg.norm(z)), 1.0)
-    for it in range(1, max_iter + 1):
+    for it in range(1, max_iter + 1):  # noqa: B007 (the count is reported)
         r = res(z)
         J = np.empty((4, 2))
         for k in range(2):
@@ -193,7 +193,7 @@ def circular_points_pt1(points5: np.ndarray, line: np.ndarray, start: complex | 
             J[:, k] = (res(z + dz) - res(z - dz)) / (2 * h)
         step = np.linalg.lstsq(J, -r, rcond=None)[0]
         z = z + step
-        if np.linalg.norm(step) <= tol * max(np.linalg.norm(z), 1.0):
+        if float(np.linalg.norm(step)) <= tol * max(float(np.linalg.norm(z)), 1.0):
             break
     t = complex(z[0], z[1])
     collapsed = abs(t.imag) < 1e-6 * max(abs(t), 1.0)

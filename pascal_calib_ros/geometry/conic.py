@@ -62,7 +62,7 @@ def fit_conic_algebraic(pts: np.ndarray) -> np.ndarray:
         raise ConicFitError("points are degenerate (collinear or repeated)") from None
     M = S1 + S2 @ Tm
     M = np.array([M[2] / 2, -M[1], M[0] / 2])
-    w, v = np.linalg.eig(M)
+    _w, v = np.linalg.eig(M)
     v = np.real(v)
     cond = 4 * v[0] * v[2] - v[1] ** 2
     ok = np.nonzero(cond > 0)[0]

@@ -41,7 +41,7 @@ def run_bench(quick: bool = False, print_table: bool = True) -> dict[str, list[d
                 raise RuntimeError(f"bench frame not detected: {det.reason}")
             t_det.append(_median_time(lambda img=img: detect_target(img, target), reps))
             t_canny.append(_median_time(lambda img=img: cv2.Canny(img, 50, 150), reps))
-        row = {"size": f"{w}x{h}", "detect_ms": 1000 * float(np.median(t_det)),
+        row: dict[str, Any] = {"size": f"{w}x{h}", "detect_ms": 1000 * float(np.median(t_det)),
                "canny_ms": 1000 * float(np.median(t_canny))}
         row["ratio"] = row["detect_ms"] / row["canny_ms"]
         detect_rows.append(row)

@@ -159,14 +159,17 @@ def apply_sensor(radiance: np.ndarray, sensor: SensorModel, rng: np.random.Gener
         r2 = ((xx - w / 2) ** 2 + (yy - h / 2) ** 2) / ((w / 2) ** 2 + (h / 2) ** 2)
         img = img * (1 - sensor.vignetting * r2)
     if sensor.blur_sigma > 0:
-        img = cv2.GaussianBlur(img, (0, 0), sensor.blur_sigma, borderType=cv2.BORDER_REFLECT)
+        img = np.asarray(cv2.GaussianBlur(img, (0, 0), sensor.blur_sigma, borderType=cv2.BORDER_REFLECT), float)
     img = np.clip(img, 0, 1) ** (1 / sensor.gamma) * 255.0
     if sensor.noise_sigma > 0:
         img = img + rng.normal(0, sensor.noise_sigma, img.shape)
     out = np.clip(np.round(img), 0, 255).astype(np.uint8)
     if sensor.jpeg_quality:
-        ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(sensor.jpeg_quality)])
-        out = cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE)
+        _ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(sensor.jpeg_quality)])
+        decoded = cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE)
+        if decoded is None:
+            raise RuntimeError("JPEG round trip failed")
+        out = np.asarray(decoded, np.uint8)
     return out
 
 

@@ -36,9 +36,11 @@ class SessionSpec:
         """Ground-truth camera: slightly non-square pixels, off-centre principal point; with k1,
         a plausible k2 and small tangential terms."""
         f = self.focal or float(self.width)
-        dist = [self.k1, -0.25 * self.k1 * abs(self.k1) * 2, 0.0008 * np.sign(self.k1), -0.0005 * np.sign(self.k1), 0.0]
-        return Camera.from_params(f, f * 1.0025, self.width / 2 + 0.011 * self.width, self.height / 2 - 0.009 * self.height,
-                                  dist=dist if self.k1 else None, width=self.width, height=self.height)
+        sgn = float(np.sign(self.k1))
+        dist = [self.k1, -0.5 * self.k1 * abs(self.k1), 0.0008 * sgn, -0.0005 * sgn, 0.0]
+        cx, cy = self.width * 0.511, self.height * 0.491
+        return Camera.from_params(f, f * 1.0025, cx, cy, dist=dist if self.k1 else None,
+                                  width=self.width, height=self.height)
 
 
 def session_views(target: Target, spec: SessionSpec) -> list[tuple[str, Pose | None, SensorModel]]:
