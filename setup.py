@@ -13,6 +13,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
+        ("share/" + package_name + "/config", glob("config/*.yaml")),
         ("share/" + package_name + "/config/targets", glob("config/targets/*.yaml")),
     ],
     install_requires=["setuptools", "numpy", "scipy", "opencv-python-headless", "pyyaml"],
@@ -25,6 +26,8 @@ setup(
     entry_points={
         "console_scripts": [
             "pascal-calib = pascal_calib_ros.cli:main",
+            "calibration_node = pascal_calib_ros.ros.calibration_node:main",
+            "replay_node = pascal_calib_ros.ros.replay_node:main",
         ],
     },
 )

@@ -156,6 +156,23 @@ def cmd_study(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_bag(args: argparse.Namespace) -> int:
+    from .io.bags import BagError, write_image_bag
+
+    paths = expand_image_args(args.images)
+    if not paths:
+        print("error: no images given", file=sys.stderr)
+        return EXIT_INPUT
+    try:
+        out = write_image_bag(args.out, paths, args.topic, args.storage, args.compressed, args.rate, args.frame_id)
+    except (BagError, ImageReadError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return EXIT_INPUT
+    kind = "CompressedImage" if args.compressed else "Image"
+    print(f"wrote {len(paths)} sensor_msgs/{kind} on {args.topic} to {out} ({args.storage})")
+    return EXIT_OK
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="pascal-calib", description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="command", required=True)
@@ -191,6 +208,16 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--empty-views", type=int, default=0, help="extra views without any target")
     r.add_argument("--defocused-views", type=int, default=0, help="extra strongly defocused views")
     r.set_defaults(func=cmd_render)
+
+    g = sub.add_parser("bag", help="write a folder of images into a rosbag2 bag (record once, calibrate later)")
+    g.add_argument("--out", required=True, help="new bag folder")
+    g.add_argument("--topic", default="/image")
+    g.add_argument("--storage", choices=["sqlite3", "mcap"], default="sqlite3")
+    g.add_argument("--compressed", action="store_true", help="store the files' bytes as CompressedImage")
+    g.add_argument("--rate", type=float, default=2.0, help="message rate for the recorded timestamps (Hz)")
+    g.add_argument("--frame-id", default="camera")
+    g.add_argument("images", nargs="+")
+    g.set_defaults(func=cmd_bag)
 
     b = sub.add_parser("bench", help="timings: detection vs cv2.Canny, calibration vs view count")
     b.add_argument("--json", action="store_true")

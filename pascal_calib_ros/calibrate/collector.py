@@ -1,0 +1,90 @@
+"""Collect views during a live session: accept a view only if it adds diversity, and report
+coverage per axis (like ROS ``camera_calibration``'s X / Y / size / skew bars).
+
+A view is summarised by the target's outer ellipse (the first circle): X, Y = centre / image
+size, size = sqrt(area) / image diagonal, skew = 1 - b / a (tilt). A new view is accepted if its
+L1 distance to every stored view in that space exceeds ``min_distance``. Coverage of an axis is
+(max - min) over the stored views divided by the axis' expected span, clipped to [0, 1].
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..detect.rings import Detection
+from ..geometry.conic import ConicFitError, Ellipse
+
+AXES = ("x", "y", "size", "skew")
+SPANS = {"x": 0.6, "y": 0.6, "size": 0.25, "skew": 0.3}
+
+
+def view_parameters(det: Detection) -> np.ndarray | None:
+    """(x, y, size, skew) of a usable detection, None without a circle."""
+    if not det.edges:
+        return None
+    try:
+        e = Ellipse.from_conic(det.edges[0].conic)
+    except ConicFitError:
+        return None
+    a, b = max(e.a, e.b), min(e.a, e.b)
+    diag = float(np.hypot(det.width, det.height))
+    return np.array([e.cx / det.width, e.cy / det.height, np.sqrt(np.pi * a * b) / diag, 1.0 - b / a])
+
+
+@dataclass
+class ViewCollector:
+    min_views: int = 8
+    max_views: int = 40
+    min_distance: float = 0.08
+    views: list[Detection] = field(default_factory=list)
+    params: list[np.ndarray] = field(default_factory=list)
+    rejected: Counter[str] = field(default_factory=Counter)
+    last_rejection: str = ""
+
+    def offer(self, det: Detection) -> tuple[bool, str]:
+        """Store the view if usable and new enough; returns (accepted, reason)."""
+        if not det.ok:
+            return self._reject(det.reason)
+        if self.views and (det.width, det.height) != (self.views[0].width, self.views[0].height):
+            return self._reject(f"image size {det.width}x{det.height} differs from the session's "
+                                f"{self.views[0].width}x{self.views[0].height}")
+        p = view_parameters(det)
+        if p is None:
+            return self._reject("no circle to place the view")
+        if self.params:
+            d = min(float(np.sum(np.abs(p - q))) for q in self.params)
+            if d < self.min_distance:
+                return self._reject("too similar to a stored view (move or tilt the target)")
+        if len(self.views) >= self.max_views:
+            return self._reject(f"view store full ({self.max_views} views); calibrate or reset")
+        self.views.append(det)
+        self.params.append(p)
+        return True, "accepted"
+
+    def _reject(self, reason: str) -> tuple[bool, str]:
+        key = reason.split("(")[0].strip()  # group by kind, without the per-frame figures
+        self.rejected[key] += 1
+        self.last_rejection = reason
+        return False, reason
+
+    def coverage(self) -> dict[str, float]:
+        if not self.params:
+            return dict.fromkeys(AXES, 0.0)
+        P = np.array(self.params)
+        return {a: float(min(1.0, (P[:, k].max() - P[:, k].min()) / SPANS[a])) for k, a in enumerate(AXES)}
+
+    @property
+    def ready(self) -> bool:
+        """Enough views and every axis at least half covered."""
+        return len(self.views) >= self.min_views and min(self.coverage().values()) >= 0.5
+
+    def clear(self) -> int:
+        n = len(self.views)
+        self.views.clear()
+        self.params.clear()
+        self.rejected.clear()
+        self.last_rejection = ""
+        return n

@@ -1,0 +1,1 @@
+"""ROS 2 layer: thin nodes that convert messages and call the pure core."""

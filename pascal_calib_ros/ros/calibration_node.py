@@ -1,0 +1,456 @@
+"""ROS 2 calibration node ``pascal_calib`` (executable ``calibration_node``).
+
+Subscribes ``image`` (sensor_msgs/Image) or ``image/compressed`` (``transport:=compressed``),
+detects the target in a worker thread (only the newest frame waits; older ones are dropped and
+counted), keeps the features of views that add diversity, reports progress on ``~/status``
+(diagnostic_msgs/DiagnosticArray), draws detections on ``~/detections`` while someone listens,
+and offers ``~/calibrate``, ``~/reset`` and ``~/commit`` (std_srvs/Trigger). A good result is
+published on ``~/camera_info`` (reliable, transient local) and written as
+camera_calibration_parsers YAML; a failed calibration publishes nothing and keeps the previous.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image
+from sensor_msgs.srv import SetCameraInfo
+from std_srvs.srv import Trigger
+
+from ..calibrate.collector import ViewCollector
+from ..calibrate.pipeline import METHODS, CalibrationError, CalibrationOptions, CalibrationResult, calibrate
+from ..calibrate.refine import DISTORTION_MODELS
+from ..detect.rings import Detection, detect_target
+from ..io.camera_yaml import CameraInfoData, write_camera_yaml
+from ..io.image_msgs import ImageConversionError, compressed_to_grey, grey_to_image_fields, image_to_grey
+from ..targets import Target, TargetError, resolve_target
+from .conversions import camera_info_msg
+
+
+@dataclass(frozen=True)
+class Param:
+    name: str
+    default: Any
+    description: str
+    choices: tuple[str, ...] = ()
+    int_range: tuple[int, int] | None = None
+    float_range: tuple[float, float] | None = None
+
+
+# The one declaration table of the node's parameters.
+PARAMS = (
+    Param("target", "ring_a4", "target YAML path or packaged target name (ring_a4, pascal_board_a3, ...)"),
+    Param("method", "", "ring | pt2 | pt1 | huang | zhang; empty: the target's natural method",
+          choices=("", *METHODS)),
+    Param("min_views", 8, "views needed before calibrating (>= 3)", int_range=(3, 1000)),
+    Param("max_views", 40, "views kept at most (bounded memory)", int_range=(3, 1000)),
+    Param("camera_name", "camera", "camera_name written to the YAML and CameraInfo consumers"),
+    Param("output_dir", "", "if set: accepted frames, the YAML and a JSON summary are written here"),
+    Param("calibration_file", "", "YAML path; empty: <output_dir>/<camera_name>.yaml, else "
+          "~/.ros/camera_info/<camera_name>.yaml"),
+    Param("zero_skew", True, "estimate K with zero skew"),
+    Param("distortion_model", "plumb_bob", "plumb_bob | plumb_bob_k3_fixed | radial | none",
+          choices=tuple(DISTORTION_MODELS)),
+    Param("auto_calibrate", False, "calibrate as soon as the coverage is complete"),
+    Param("qos", "auto", "image subscription reliability: auto (match the publisher) | reliable | best_effort",
+          choices=("auto", "reliable", "best_effort")),
+    Param("transport", "raw", "raw (sensor_msgs/Image on 'image') | compressed ('image/compressed')",
+          choices=("raw", "compressed")),
+    Param("set_camera_info_service", "camera/set_camera_info", "driver's sensor_msgs/SetCameraInfo service"),
+    Param("min_view_distance", 0.08, "diversity threshold between stored views (L1 in x, y, size, skew)",
+          float_range=(0.0, 2.0)),
+)
+READ_ONLY = {"transport"}
+
+
+class CalibrationNode(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("pascal_calib", **kwargs)
+        for p in PARAMS:
+            desc = ParameterDescriptor(description=p.description + (f" ({', '.join(p.choices)})" if p.choices else ""),
+                                       read_only=p.name in READ_ONLY)
+            if p.int_range:
+                desc.integer_range = [IntegerRange(from_value=p.int_range[0], to_value=p.int_range[1], step=1)]
+            if p.float_range:
+                desc.floating_point_range = [FloatingPointRange(from_value=p.float_range[0],
+                                                                to_value=p.float_range[1], step=0.0)]
+            self.declare_parameter(p.name, p.default, desc)
+        problems = self._validate({p.name: self.get_parameter(p.name).value for p in PARAMS})
+        if problems:
+            raise ValueError("invalid parameters: " + "; ".join(problems))
+        self.target: Target = resolve_target(self.p("target"))
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+
+        self.lock = threading.Lock()
+        self.collector = ViewCollector(self.p("min_views"), self.p("max_views"), self.p("min_view_distance"))
+        self.result: CalibrationResult | None = None
+        self.result_msg: CameraInfo | None = None
+        self.frames_received = 0
+        self.frames_dropped = 0
+        self.frames_bad = 0
+        self.last_error = ""
+        self.frame_id = "camera"
+        self.calibrating = threading.Lock()
+        self.auto_done_at = -1
+
+        self._pending: Any = None
+        self._pending_cv = threading.Condition()
+        self._stop = threading.Event()
+        self._worker = threading.Thread(target=self._work, name="detector", daemon=True)
+
+        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL, history=HistoryPolicy.KEEP_LAST)
+        self.pub_info = self.create_publisher(CameraInfo, "~/camera_info", latched)
+        self.pub_status = self.create_publisher(DiagnosticArray, "~/status", 10)
+        self.pub_det = self.create_publisher(Image, "~/detections", 2)
+
+        services = ReentrantCallbackGroup()
+        self.create_service(Trigger, "~/calibrate", self._srv_calibrate, callback_group=services)
+        self.create_service(Trigger, "~/reset", self._srv_reset, callback_group=services)
+        self.create_service(Trigger, "~/commit", self._srv_commit, callback_group=services)
+        self.set_info_client = self.create_client(SetCameraInfo, self.p("set_camera_info_service"),
+                                                  callback_group=services)
+
+        self._image_group = MutuallyExclusiveCallbackGroup()
+        self.sub: Any = None
+        self.sub_reliability: ReliabilityPolicy | None = None
+        self.topic = "image/compressed" if self.p("transport") == "compressed" else "image"
+        self._ensure_subscription()
+        self.create_timer(1.0, self._ensure_subscription, callback_group=MutuallyExclusiveCallbackGroup())
+        self.create_timer(1.0, self.publish_status, callback_group=MutuallyExclusiveCallbackGroup())
+        self._worker.start()
+        self.get_logger().info(
+            f"target {self.target.name}, method {self.method}, listening on "
+            f"{self.resolve_topic_name(self.topic)} ({self.p('transport')}, qos {self.p('qos')}); "
+            f"call {self.resolve_service_name('~/calibrate')} when the status says ready")
+
+    # -- parameters ------------------------------------------------------------------
+    def p(self, name: str) -> Any:
+        return self.get_parameter(name).value
+
+    @property
+    def method(self) -> str:
+        return str(self.p("method") or self.target.default_method())
+
+    def _validate(self, values: dict[str, Any]) -> list[str]:
+        problems = []
+        table = {p.name: p for p in PARAMS}
+        for name, value in values.items():
+            p = table.get(name)
+            if p is None:
+                continue
+            if p.choices and value not in p.choices:
+                problems.append(f"{name}={value!r} is not one of {', '.join(repr(c) for c in p.choices)}")
+        target_value = values.get("target")
+        if target_value is not None:
+            try:
+                t = resolve_target(str(target_value))
+                method = values.get("method", self.get_parameter("method").value if self.has_parameter("method") else "")
+                if method and method not in t.methods():
+                    problems.append(f"method {method!r} does not fit target {t.name} (supports {', '.join(t.methods())})")
+            except TargetError as e:
+                problems.append(f"target: {e}")
+        mn = values.get("min_views", self.p("min_views") if self.has_parameter("min_views") else 3)
+        mx = values.get("max_views", self.p("max_views") if self.has_parameter("max_views") else 1000)
+        if int(mx) < int(mn):
+            problems.append(f"max_views {mx} < min_views {mn}")
+        return problems
+
+    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        values = {p.name: p.value for p in params}
+        problems = self._validate(values)
+        if problems:
+            return SetParametersResult(successful=False, reason="; ".join(problems))
+        with self.lock:
+            if "target" in values:
+                self.target = resolve_target(str(values["target"]))
+                self.collector.clear()
+            if "min_views" in values:
+                self.collector.min_views = int(values["min_views"])
+            if "max_views" in values:
+                self.collector.max_views = int(values["max_views"])
+            if "min_view_distance" in values:
+                self.collector.min_distance = float(values["min_view_distance"])
+        return SetParametersResult(successful=True)
+
+    # -- image input ------------------------------------------------------------------
+    def _wanted_reliability(self) -> ReliabilityPolicy:
+        mode = self.p("qos")
+        if mode == "reliable":
+            return ReliabilityPolicy.RELIABLE
+        if mode == "best_effort":
+            return ReliabilityPolicy.BEST_EFFORT
+        infos = self.get_publishers_info_by_topic(self.resolve_topic_name(self.topic))
+        if any(i.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for i in infos):
+            return ReliabilityPolicy.BEST_EFFORT  # a reliable subscriber would never connect
+        return ReliabilityPolicy.RELIABLE  # no loss of large frames (and the default before anyone publishes)
+
+    def _ensure_subscription(self) -> None:
+        want = self._wanted_reliability()
+        if self.sub is not None and want == self.sub_reliability:
+            return
+        if self.sub is not None:
+            self.destroy_subscription(self.sub)
+        qos = QoSProfile(depth=2, reliability=want, history=HistoryPolicy.KEEP_LAST)
+        msg_type = CompressedImage if self.p("transport") == "compressed" else Image
+        self.sub = self.create_subscription(msg_type, self.topic, self._on_image, qos,
+                                            callback_group=self._image_group)
+        self.sub_reliability = want
+        self.get_logger().info(f"subscribed to {self.resolve_topic_name(self.topic)} with "
+                               f"{'reliable' if want == ReliabilityPolicy.RELIABLE else 'best-effort'} QoS")
+
+    def _on_image(self, msg: Any) -> None:
+        """Executor callback: only hand the newest frame to the worker."""
+        with self._pending_cv:
+            self.frames_received += 1
+            if self._pending is not None:
+                self.frames_dropped += 1
+            self._pending = msg
+            self._pending_cv.notify()
+
+    def _work(self) -> None:
+        while not self._stop.is_set():
+            with self._pending_cv:
+                while self._pending is None and not self._stop.is_set():
+                    self._pending_cv.wait(0.2)
+                msg, self._pending = self._pending, None
+            if msg is None:
+                continue
+            try:
+                self._process(msg)
+            except Exception as e:  # a bad frame must never stop the node
+                self.frames_bad += 1
+                self.last_error = f"frame processing failed: {type(e).__name__}: {e}"
+                self.get_logger().error(self.last_error)
+
+    def _process(self, msg: Any) -> None:
+        try:
+            img = compressed_to_grey(msg) if isinstance(msg, CompressedImage) else image_to_grey(msg)
+        except ImageConversionError as e:
+            with self.lock:
+                self.frames_bad += 1
+                self.collector._reject(f"bad frame: {e}")
+                self.last_error = str(e)
+            self.get_logger().warn(f"bad frame: {e}", throttle_duration_sec=5.0)
+            return
+        if msg.header.frame_id:
+            self.frame_id = msg.header.frame_id
+        with self.lock:
+            target = self.target
+        det = detect_target(img, target, name=f"frame_{self.frames_received:06d}")
+        with self.lock:
+            accepted, _ = self.collector.offer(det)
+            n = len(self.collector.views)
+            ready = self.collector.ready
+        if accepted and self.p("output_dir"):
+            out = Path(self.p("output_dir")) / "frames"
+            out.mkdir(parents=True, exist_ok=True)
+            cv2.imwrite(str(out / f"view_{n - 1:03d}.png"), img)
+        if self.pub_det.get_subscription_count() > 0:
+            self._publish_detection(img, det, msg.header)
+        if accepted:
+            self.publish_status()
+        if ready and self.p("auto_calibrate") and self.auto_done_at != n and not self.calibrating.locked():
+            self.auto_done_at = n
+            threading.Thread(target=self.run_calibration, name="auto-calibrate", daemon=True).start()
+
+    def _publish_detection(self, img: np.ndarray, det: Detection, header: Any) -> None:
+        vis = cv2.cvtColor(cv2.convertScaleAbs(img, alpha=255.0 / 65535) if img.dtype == np.uint16 else img,
+                           cv2.COLOR_GRAY2BGR)
+        colour = (0, 200, 0) if det.ok else (0, 0, 255)
+        for e in det.edges:
+            cv2.polylines(vis, [np.round(e.points).astype(np.int32).reshape(-1, 1, 2)], True, colour, 1)
+        if det.corners is not None:
+            for x, y in det.corners:
+                cv2.circle(vis, (round(x), round(y)), 3, (255, 128, 0), 1)
+        cv2.putText(vis, "ok" if det.ok else det.reason[:60], (10, 25), cv2.FONT_HERSHEY_SIMPLEX, 0.6, colour, 2)
+        out = Image(header=header, **grey_to_image_fields(vis))
+        self.pub_det.publish(out)
+
+    # -- status -------------------------------------------------------------------------
+    def publish_status(self) -> None:
+        with self.lock:
+            cov = self.collector.coverage()
+            n = len(self.collector.views)
+            ready = self.collector.ready
+            rejected = dict(self.collector.rejected)
+            last_rej = self.collector.last_rejection
+            result = self.result
+        st = DiagnosticStatus(name=f"{self.get_name()}: calibration", hardware_id=str(self.p("camera_name")))
+        if self.calibrating.locked():
+            st.level, st.message = DiagnosticStatus.OK, "calibrating"
+        elif ready:
+            st.level, st.message = DiagnosticStatus.OK, f"ready: {n} views; call ~/calibrate"
+        else:
+            st.level = DiagnosticStatus.WARN
+            st.message = (f"collecting: {n}/{self.collector.min_views} views, coverage "
+                          + " ".join(f"{k} {v:.2f}" for k, v in cov.items()))
+        kv = {
+            "views_accepted": n, "views_rejected": sum(rejected.values()), "ready": ready,
+            "frames_received": self.frames_received, "frames_dropped": self.frames_dropped,
+            "frames_bad": self.frames_bad, "last_rejection": last_rej, "last_error": self.last_error,
+            **{f"coverage_{k}": round(v, 3) for k, v in cov.items()},
+            **{f"rejected: {k}": v for k, v in sorted(rejected.items())},
+            "result": result.summary_line() if result else "",
+        }
+        st.values = [KeyValue(key=k, value=str(v)) for k, v in kv.items()]
+        self.pub_status.publish(DiagnosticArray(header=self._header(), status=[st]))
+
+    def _header(self) -> Any:
+        from std_msgs.msg import Header
+
+        return Header(stamp=self.get_clock().now().to_msg(), frame_id=self.frame_id)
+
+    # -- services -------------------------------------------------------------------------
+    def run_calibration(self) -> tuple[bool, str]:
+        if not self.calibrating.acquire(blocking=False):
+            return False, "a calibration is already running; try again when it finishes"
+        try:
+            with self.lock:
+                views = list(self.collector.views)
+                target = self.target
+                min_views = self.collector.min_views
+            if len(views) < min_views:
+                msg = (f"{len(views)} view(s) collected; need {min_views}. Move the target through the image "
+                       f"(rejections: {dict(self.collector.rejected) or 'none'})")
+                self.get_logger().warn(f"calibration refused: {msg}")
+                return False, msg
+            opts = CalibrationOptions(method=self.method, distortion=str(self.p("distortion_model")),
+                                      zero_skew=bool(self.p("zero_skew")), min_views=min(min_views, len(views)))
+            t0 = time.perf_counter()
+            try:
+                res = calibrate(views, target, opts)
+            except CalibrationError as e:
+                self.get_logger().warn(f"calibration failed: {e}")
+                return False, f"calibration failed: {e}"
+            except Exception as e:  # never let a numerical failure take the node down
+                self.get_logger().error(f"calibration crashed: {type(e).__name__}: {e}")
+                return False, f"calibration failed: {type(e).__name__}: {e}"
+            dt = time.perf_counter() - t0
+            msg = camera_info_msg(res, str(self.p("camera_name")), self._header())
+            path = self._write_outputs(res)
+            with self.lock:
+                self.result, self.result_msg = res, msg
+            self.pub_info.publish(msg)
+            summary = f"{res.summary_line()} time={dt:.2f}s yaml={path}"
+            if res.warnings:
+                summary += " warnings: " + "; ".join(res.warnings)
+            self.get_logger().info(f"calibrated: {summary}")
+            self.publish_status()
+            return True, summary
+        finally:
+            self.calibrating.release()
+
+    def _write_outputs(self, res: CalibrationResult) -> Path:
+        name = str(self.p("camera_name"))
+        out_dir = str(self.p("output_dir"))
+        path_s = str(self.p("calibration_file"))
+        if path_s:
+            path = Path(path_s).expanduser()
+        elif out_dir:
+            path = Path(out_dir) / f"{name}.yaml"
+        else:
+            path = Path.home() / ".ros" / "camera_info" / f"{name}.yaml"
+        write_camera_yaml(path, CameraInfoData(res.width, res.height, name, res.K, res.D, "plumb_bob"))
+        if out_dir:
+            summary = {"summary": res.summary_line(), "K": res.K.tolist(), "D": res.D.tolist(), "std": res.std,
+                       "rms": res.rms, "degeneracy_ratio": res.degeneracy_ratio, "warnings": res.warnings,
+                       "views": [{"name": v.name, "used": v.used, "reason": v.reason, "rms": v.rms}
+                                 for v in res.views]}
+            Path(out_dir).mkdir(parents=True, exist_ok=True)
+            (Path(out_dir) / "calibration.json").write_text(json.dumps(summary, indent=1, default=float))
+        return path
+
+    def _srv_calibrate(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
+        resp.success, resp.message = self.run_calibration()
+        return resp
+
+    def _srv_reset(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
+        with self.lock:
+            n = self.collector.clear()
+            self.auto_done_at = -1
+        running = " (a running calibration finishes on its own copy of the views)" if self.calibrating.locked() else ""
+        resp.success, resp.message = True, f"cleared {n} view(s){running}; the last result is kept"
+        self.get_logger().info(resp.message)
+        self.publish_status()
+        return resp
+
+    def _srv_commit(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
+        with self.lock:
+            info = self.result_msg
+        service = self.set_info_client.srv_name
+        if info is None:
+            resp.success, resp.message = False, "no calibration to commit: call ~/calibrate first"
+            return resp
+        if not self.set_info_client.wait_for_service(timeout_sec=2.0):
+            resp.success, resp.message = False, f"driver service {service} is not available"
+            self.get_logger().warn(resp.message)
+            return resp
+        done = threading.Event()
+        fut = self.set_info_client.call_async(SetCameraInfo.Request(camera_info=info))
+        fut.add_done_callback(lambda _f: done.set())
+        if not done.wait(10.0):
+            fut.cancel()
+            resp.success, resp.message = False, f"driver service {service} did not answer within 10 s"
+            return resp
+        try:
+            answer = fut.result()
+        except Exception as e:
+            resp.success, resp.message = False, f"driver service {service} failed: {e}"
+            return resp
+        if answer is None:
+            resp.success, resp.message = False, f"driver service {service} gave no answer"
+            return resp
+        resp.success = bool(answer.success)
+        resp.message = (f"driver accepted the calibration: {answer.status_message}" if answer.success
+                        else f"driver refused the calibration: {answer.status_message}")
+        self.get_logger().info(resp.message)
+        return resp
+
+    def shutdown(self) -> None:
+        self._stop.set()
+        with self._pending_cv:
+            self._pending_cv.notify_all()
+        if self._worker.is_alive():
+            self._worker.join(timeout=5.0)
+
+
+def main(args: list[str] | None = None) -> int:
+    rclpy.init(args=args)
+    try:
+        node = CalibrationNode()
+    except (ValueError, TargetError) as e:
+        rclpy.logging.get_logger("pascal_calib").fatal(str(e))
+        rclpy.try_shutdown()
+        return 2
+    executor = MultiThreadedExecutor(num_threads=4)
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.shutdown()
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
