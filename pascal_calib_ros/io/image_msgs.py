@@ -48,7 +48,8 @@ def image_to_grey(msg: Any) -> np.ndarray:
     """sensor_msgs/Image -> grey uint8 or uint16 array (H, W)."""
     enc = str(msg.encoding).lower()
     if enc not in _ENCODINGS:
-        raise ImageConversionError(f"unsupported encoding {msg.encoding!r} (supported: {', '.join(SUPPORTED_ENCODINGS)})")
+        raise ImageConversionError(
+            f"unsupported encoding {msg.encoding!r} (supported: {', '.join(SUPPORTED_ENCODINGS)})")
     ch, dtype, code = _ENCODINGS[enc]
     h, w, step = int(msg.height), int(msg.width), int(msg.step)
     if h <= 0 or w <= 0:

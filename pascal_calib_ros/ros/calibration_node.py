@@ -160,9 +160,11 @@ class CalibrationNode(Node):
         if target_value is not None:
             try:
                 t = resolve_target(str(target_value))
-                method = values.get("method", self.get_parameter("method").value if self.has_parameter("method") else "")
+                current = self.get_parameter("method").value if self.has_parameter("method") else ""
+                method = values.get("method", current)
                 if method and method not in t.methods():
-                    problems.append(f"method {method!r} does not fit target {t.name} (supports {', '.join(t.methods())})")
+                    problems.append(f"method {method!r} does not fit target {t.name} "
+                                    f"(supports {', '.join(t.methods())})")
             except TargetError as e:
                 problems.append(f"target: {e}")
         mn = values.get("min_views", self.p("min_views") if self.has_parameter("min_views") else 3)

@@ -1,0 +1,35 @@
+"""Test-side helpers for the ROS end-to-end tests (processes and clients live in the package)."""
+
+from __future__ import annotations
+
+import itertools
+import os
+import random
+from pathlib import Path
+
+import pytest
+
+from pascal_calib_ros.ros.processes import NodeProcess, RosClient
+
+__all__ = ["NodeProcess", "RosClient", "next_domain_id", "require_netns"]
+
+_domains = itertools.count(random.Random(os.getpid()).randint(1, 60))
+
+
+def in_private_netns() -> bool:
+    """True when this process only sees the loopback interface (``tools/in_netns``)."""
+    try:  # /proc/net/dev is per network namespace (sysfs may still show the host's)
+        lines = Path("/proc/net/dev").read_text().splitlines()[2:]
+    except OSError:
+        return False
+    return {ln.split(":")[0].strip() for ln in lines} == {"lo"}
+
+
+require_netns = pytest.mark.skipif(not in_private_netns(),
+                                   reason="ROS end-to-end tests run only in a private network namespace "
+                                          "(make test does it through tools/in_netns, as root)")
+
+
+def next_domain_id() -> int:
+    """A distinct ROS_DOMAIN_ID per test (and per test run: the base depends on the pid)."""
+    return 1 + (next(_domains) % 100)
