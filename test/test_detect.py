@@ -90,3 +90,28 @@ def test_wrong_target_file_is_rejected(ring_target: Target, board_target: Target
     _, imgs, _ = ring_session
     det = detect_target(imgs[0], board_target)
     assert not det.ok and "disc" in det.reason
+
+
+def test_arbitrary_arrays_through_detection_never_raise(ring_target: Target, board_target: Target) -> None:
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    @settings(max_examples=60, deadline=None)
+    @given(h=st.integers(1, 90), w=st.integers(1, 90), dtype=st.sampled_from([np.uint8, np.uint16, np.float32]),
+           channels=st.sampled_from([0, 3]), seed=st.integers(0, 2**16), pattern=st.sampled_from(["noise", "blobs"]))
+    def check(h: int, w: int, dtype: type, channels: int, seed: int, pattern: str) -> None:
+        rng = np.random.default_rng(seed)
+        img = rng.random((h, w)) * 255
+        if pattern == "blobs":
+            import cv2
+
+            img = cv2.GaussianBlur(img, (0, 0), 3) > 127
+            img = img * 200.0 + 20
+        arr = img.astype(dtype)
+        if channels:
+            arr = np.repeat(arr[..., None], 3, axis=2).astype(dtype) if dtype == np.uint8 else arr
+        for t in (ring_target, board_target):
+            det = detect_target(arr, t)
+            assert not det.ok and det.reason
+
+    check()

@@ -104,3 +104,14 @@ def test_bad_options_are_refused(ring_target: Target, ring_session) -> None:
         calibrate(dets, ring_target, CalibrationOptions(method="zhang"))
     with pytest.raises(CalibrationError, match="distortion"):
         calibrate(dets, ring_target, CalibrationOptions(distortion="fisheye"))
+
+
+def test_fronto_parallel_views_are_refused(ring_target: Target) -> None:
+    cam = Camera.from_params(800, 800, 400, 300, width=800, height=600)
+    dets = []
+    for k, (px, roll) in enumerate([((300, 250), 0.0), ((500, 330), 40.0), ((420, 280), 80.0), ((350, 350), 120.0)]):
+        pose = look_at_pose(ring_target, cam, px, 0.4, 1.0, 30.0 * k, roll)  # 1 degree of tilt only
+        dets.append(detect_target(render_view(ring_target, cam, pose, SensorModel(seed=k)).image, ring_target))
+    assert all(d.ok for d in dets)
+    with pytest.raises(CalibrationError, match="fronto-parallel|positive definite|circular point"):
+        calibrate(dets, ring_target)
