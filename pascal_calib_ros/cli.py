@@ -120,6 +120,11 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     info = CameraInfoData(res.width, res.height, args.camera_name, res.K, res.D, "plumb_bob")
     out = write_camera_yaml(args.output, info)
     print(f"wrote {out}")
+    if args.report:
+        from .io.report import write_report
+
+        png, js = write_report(res, dets, args.report)
+        print(f"wrote {png} and {js}")
     return EXIT_OK
 
 
@@ -173,6 +178,26 @@ def cmd_bag(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_experiment(args: argparse.Namespace) -> int:
+    from .sim.experiments import run_experiment
+
+    run_experiment(args.name, Path(args.out), args.trials, args.seed)
+    return EXIT_OK
+
+
+def cmd_target(args: argparse.Namespace) -> int:
+    from .io.printable import write_printable
+
+    try:
+        target = resolve_target(args.target)
+        out = write_printable(target, args.output)
+    except (TargetError, ValueError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return EXIT_INPUT
+    print(f"wrote {out} ({1000 * target.sheet[0]:g} x {1000 * target.sheet[1]:g} mm; print at 100 %)")
+    return EXIT_OK
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="pascal-calib", description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="command", required=True)
@@ -189,6 +214,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--gamma", type=float, default=1.0, help="linearise with this display gamma before edges")
     c.add_argument("--max-blur", type=float, default=4.0, help="reject views whose edges are wider (px)")
     c.add_argument("--min-views", type=int, default=3)
+    c.add_argument("--report", metavar="DIR", help="write report.png and report.json into DIR")
     c.add_argument("images", nargs="+", help="image files or folders")
     c.set_defaults(func=cmd_calibrate)
 
@@ -223,6 +249,18 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--json", action="store_true")
     b.add_argument("--quick", action="store_true", help="fewer repetitions")
     b.set_defaults(func=cmd_bench)
+
+    t = sub.add_parser("target", help="printable target at exact scale (.pdf, .svg, .png)")
+    t.add_argument("--target", required=True)
+    t.add_argument("-o", "--output", required=True)
+    t.set_defaults(func=cmd_target)
+
+    e = sub.add_parser("experiment", help="the seed paper's experiments: CSV + PNG + table")
+    e.add_argument("name", choices=["layouts", "methods", "literal", "board", "reconstruct"])
+    e.add_argument("--out", default="out/experiments")
+    e.add_argument("--trials", type=int, default=None, help="default: 50 (simulations), 3 sessions (board, reconstruct)")
+    e.add_argument("--seed", type=int, default=0)
+    e.set_defaults(func=cmd_experiment)
 
     s = sub.add_parser("study", help="accuracy studies against ground truth (see README)")
     s.add_argument("name", choices=["accuracy", "edge-bias"])

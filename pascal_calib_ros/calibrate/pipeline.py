@@ -64,6 +64,10 @@ class CalibrationResult:
     refined: bool = True
     distortion_model: str = "plumb_bob"
     poses: list[np.ndarray] = field(default_factory=list)
+    # per used view (same order as the used entries of ``views``): edge points and their signed
+    # residuals (px, positive outwards), for reports
+    edge_points: list[np.ndarray] = field(default_factory=list)
+    edge_residuals: list[np.ndarray] = field(default_factory=list)
 
     @property
     def n_used(self) -> int:
@@ -174,7 +178,8 @@ def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions
         reports[k].edge_offset = float(res.offsets[j])
     _check_result(res, w, h, warnings)
     return CalibrationResult(res.K, res.D, w, h, opt.method, res.rms, res.std, sol.degeneracy_ratio, reports,
-                             warnings, sol.K, True, opt.distortion, res.poses)
+                             warnings, sol.K, True, opt.distortion, res.poses, [v.points for v in views],
+                             res.residuals)
 
 
 def _check_result(res: RefineResult, w: int, h: int, warnings: list[str]) -> None:

@@ -345,7 +345,7 @@ class CalibrationNode(Node):
                 return False, f"calibration failed: {type(e).__name__}: {e}"
             dt = time.perf_counter() - t0
             msg = camera_info_msg(res, str(self.p("camera_name")), self._header())
-            path = self._write_outputs(res)
+            path = self._write_outputs(res, views)
             with self.lock:
                 self.result, self.result_msg = res, msg
             self.pub_info.publish(msg)
@@ -358,7 +358,7 @@ class CalibrationNode(Node):
         finally:
             self.calibrating.release()
 
-    def _write_outputs(self, res: CalibrationResult) -> Path:
+    def _write_outputs(self, res: CalibrationResult, views: list[Detection]) -> Path:
         name = str(self.p("camera_name"))
         out_dir = str(self.p("output_dir"))
         path_s = str(self.p("calibration_file"))
@@ -376,6 +376,12 @@ class CalibrationNode(Node):
                                  for v in res.views]}
             Path(out_dir).mkdir(parents=True, exist_ok=True)
             (Path(out_dir) / "calibration.json").write_text(json.dumps(summary, indent=1, default=float))
+            try:
+                from ..io.report import write_report
+
+                write_report(res, views, out_dir)
+            except Exception as e:  # a report must never cost the calibration
+                self.get_logger().warn(f"report not written: {type(e).__name__}: {e}")
         return path
 
     def _srv_calibrate(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
