@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 export AMENT_PREFIX_PATH := $(abspath $(VENV))
 
-.PHONY: demo test lint typecheck unit bench study clean venv
+.PHONY: demo test lint typecheck unit bench study experiments clean venv
 
 venv: $(STAMP)
 
@@ -31,7 +31,10 @@ unit: $(STAMP)
 	tools/in_netns $(PY) -m pytest -q test
 
 bench: $(STAMP)
-	$(VENV)/bin/pascal-calib bench
+	tools/in_netns $(VENV)/bin/pascal-calib bench --node
+
+experiments: $(STAMP)
+	for e in methods layouts literal board reconstruct; do $(VENV)/bin/pascal-calib experiment $$e --out docs/figures || exit 1; done
 
 study: $(STAMP)
 	$(VENV)/bin/pascal-calib study accuracy --out out/study

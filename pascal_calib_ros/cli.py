@@ -11,6 +11,7 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -148,7 +149,17 @@ def cmd_render(args: argparse.Namespace) -> int:
 def cmd_bench(args: argparse.Namespace) -> int:
     from .sim.bench import run_bench
 
-    result = run_bench(quick=args.quick, print_table=not args.json)
+    result: dict[str, Any] = dict(run_bench(quick=args.quick, print_table=not args.json))
+    if args.node:
+        from .ros.throughput import run_load
+
+        load = run_load(args.node_seconds, rate=10.0, width=2456, height=2058)
+        result["node"] = {"size": "2456x2058", "rate_hz": 10.0, "seconds": load.seconds, "published": load.published,
+                          "received": load.received, "dropped": load.dropped,
+                          "processed_per_s": load.processed_per_s,
+                          "rss_mb_start": load.rss_mb[0][1], "rss_mb_end": load.rss_mb[-1][1]}
+        if not args.json:
+            print("node throughput (5 MP at 10 Hz, across processes): " + load.summary())
     if args.json:
         print(json.dumps(result))
     return EXIT_OK
@@ -248,6 +259,9 @@ def build_parser() -> argparse.ArgumentParser:
     b = sub.add_parser("bench", help="timings: detection vs cv2.Canny, calibration vs view count")
     b.add_argument("--json", action="store_true")
     b.add_argument("--quick", action="store_true", help="fewer repetitions")
+    b.add_argument("--node", action="store_true",
+                   help="also measure the calibration node across processes (run under tools/in_netns)")
+    b.add_argument("--node-seconds", type=float, default=30.0)
     b.set_defaults(func=cmd_bench)
 
     t = sub.add_parser("target", help="printable target at exact scale (.pdf, .svg, .png)")
@@ -258,7 +272,8 @@ def build_parser() -> argparse.ArgumentParser:
     e = sub.add_parser("experiment", help="the seed paper's experiments: CSV + PNG + table")
     e.add_argument("name", choices=["layouts", "methods", "literal", "board", "reconstruct"])
     e.add_argument("--out", default="out/experiments")
-    e.add_argument("--trials", type=int, default=None, help="default: 50 (simulations), 3 sessions (board, reconstruct)")
+    e.add_argument("--trials", type=int, default=None,
+                   help="default: 50 (simulations), 3 sessions (board, reconstruct)")
     e.add_argument("--seed", type=int, default=0)
     e.set_defaults(func=cmd_experiment)
 

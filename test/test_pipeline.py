@@ -113,5 +113,5 @@ def test_fronto_parallel_views_are_refused(ring_target: Target) -> None:
         pose = look_at_pose(ring_target, cam, px, 0.4, 1.0, 30.0 * k, roll)  # 1 degree of tilt only
         dets.append(detect_target(render_view(ring_target, cam, pose, SensorModel(seed=k)).image, ring_target))
     assert all(d.ok for d in dets)
-    with pytest.raises(CalibrationError, match="fronto-parallel|positive definite|circular point"):
+    with pytest.raises(CalibrationError, match=r"fronto-parallel|positive definite|circular point"):
         calibrate(dets, ring_target)

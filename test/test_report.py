@@ -9,7 +9,7 @@ from pascal_calib_ros.targets import Target, resolve_target
 
 
 def test_report_png_and_json(tmp_path: Path, ring_target: Target, ring_session_distorted) -> None:
-    cam, _, dets = ring_session_distorted
+    _cam, _, dets = ring_session_distorted
     res = calibrate(dets, ring_target)
     png, js = write_report(res, dets, tmp_path)
     assert png.stat().st_size > 50_000

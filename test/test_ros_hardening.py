@@ -67,7 +67,8 @@ def test_node_survives_a_stream_of_malformed_messages(tmp_path: Path) -> None:
     try:
         status = _status(client)
         infos = _infos(client)
-        pub = client.node.create_publisher(Image, "/image", QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE))
+        qos = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+        pub = client.node.create_publisher(Image, "/image", qos)
         assert client.spin_until(lambda: pub.get_subscription_count() > 0, 20)
         rng = np.random.default_rng(0)
         msgs = _malformed_images(rng, 2000)
@@ -107,7 +108,7 @@ def test_corrupt_compressed_frames(tmp_path: Path) -> None:
         status = _status(client)
         pub = client.node.create_publisher(CompressedImage, "/image/compressed", 50)
         assert client.spin_until(lambda: pub.get_subscription_count() > 0, 20)
-        ok, png = cv2.imencode(".png", np.full((60, 80), 128, np.uint8))
+        _ok, png = cv2.imencode(".png", np.full((60, 80), 128, np.uint8))
         rng = np.random.default_rng(1)
         import time
 

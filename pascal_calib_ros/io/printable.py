@@ -16,7 +16,8 @@ INCH = 0.0254
 def _describe(t: Target) -> str:
     parts = [f"ring r {1000 * r.outer_radius:g}/{1000 * r.inner_radius:g} mm" for r in t.rings]
     parts += [f"disc r {1000 * d.radius:g} mm" for d in t.discs]
-    parts += [f"checkerboard {b.squares[0]}x{b.squares[1]} squares of {1000 * b.square_size:g} mm" for b in t.checkerboards]
+    parts += [f"checkerboard {b.squares[0]}x{b.squares[1]} squares of {1000 * b.square_size:g} mm"
+              for b in t.checkerboards]
     return f"{t.name}: sheet {1000 * t.sheet[0]:g} x {1000 * t.sheet[1]:g} mm; " + ", ".join(parts)
 
 

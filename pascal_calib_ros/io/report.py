@@ -116,7 +116,7 @@ def write_report(res: CalibrationResult, dets: list[Detection], out_dir: str | P
     lines = [f"method {res.method}{' + refinement' if res.refined else ''}, {res.n_used}/{len(res.views)} views",
              f"RMS {res.rms:.4f} px, degeneracy ratio {res.degeneracy_ratio:.3f}", ""]
     lines += [f"{n:>3} = {v:12.5f}  +- {res.std.get(n, float('nan')):.5f}" for n, v in zip(names, vals, strict=True)]
-    lines += [""] + [f"{v.name}: {'used, rms %.3f px' % v.rms if v.used else 'rejected: ' + v.reason}"[:70]
+    lines += [""] + [f"{v.name}: {f'used, rms {v.rms:.3f} px' if v.used else 'rejected: ' + v.reason}"[:70]
                      for v in res.views[:18]]
     lines += [f"warning: {x}"[:80] for x in res.warnings]
     d_ax.text(0, 1, "\n".join(lines), va="top", family="monospace", fontsize=9)

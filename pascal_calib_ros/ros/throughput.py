@@ -56,7 +56,8 @@ def run_load(seconds: float, rate: float = 10.0, width: int = 2456, height: int 
     _, views = render_session_views(resolve_target("ring_a4"), spec)
     payloads = [np.ascontiguousarray(v.image).tobytes() for v in views]
     dom = domain_id if domain_id is not None else random.randint(1, 100)
-    node = NodeProcess("calibration_node", {"max_views": 40, "min_views": 8}, dom, log_dir / "load_calibration_node.log")
+    node = NodeProcess("calibration_node", {"max_views": 40, "min_views": 8}, dom,
+                       log_dir / "load_calibration_node.log")
     client = RosClient(dom, "load_publisher")
     status: list[Any] = []
     try:
@@ -71,7 +72,7 @@ def run_load(seconds: float, rate: float = 10.0, width: int = 2456, height: int 
 
         rss: list[tuple[float, float]] = []
         writer = None
-        fcsv = open(csv_path, "w", newline="") if csv_path else None  # noqa: SIM115
+        fcsv = open(csv_path, "w", newline="") if csv_path else None
         if fcsv:
             writer = csv.writer(fcsv)
             writer.writerow(["t_s", "published", "received", "dropped", "bad", "views", "rss_mb"])
@@ -80,7 +81,10 @@ def run_load(seconds: float, rate: float = 10.0, width: int = 2456, height: int 
         next_sample = t0
         while time.monotonic() - t0 < seconds:
             t_pub = t0 + n / rate
-            client.spin_until(lambda t_pub=t_pub: time.monotonic() >= t_pub, max(0.0, t_pub - time.monotonic()) + 0.1)
+            def due(t_pub: float = t_pub) -> bool:
+                return time.monotonic() >= t_pub
+
+            client.spin_until(due, max(0.0, t_pub - time.monotonic()) + 0.1)
             msg = Image(header=Header(frame_id="camera", stamp=client.node.get_clock().now().to_msg()),
                         height=height, width=width, encoding="mono8", is_bigendian=0, step=width)
             msg.data = payloads[n % len(payloads)]

@@ -378,7 +378,8 @@ def run_literal(trials: int, seed: int) -> list[dict[str, Any]]:
                             start = np.array([W / 2 + 300 * rng.normal() + 300j * rng.normal(),
                                               H / 2 + 300 * rng.normal() + 300j * rng.normal(), 1.0])
                         five = layout_points(v, "average", "fitted")
-                        pts.append(pt2_literal(five, start) if method == "pt2_literal" else pt1_literal(five[:4], start))
+                        pts.append(pt2_literal(five, start) if method == "pt2_literal"
+                                   else pt1_literal(five[:4], start))
                     key = (method, start_kind)
                     try:
                         Ks.setdefault(key, []).append(iac_from_circular_points(pts, W, H).K)

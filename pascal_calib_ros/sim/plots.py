@@ -8,7 +8,7 @@ from typing import Any
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt
 
 PARAMS = (("fu", "f_u"), ("fv", "f_v"), ("u0", "u_0"), ("v0", "v_0"), ("s", "s"))
 
