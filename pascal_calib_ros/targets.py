@@ -8,6 +8,7 @@ A target is a flat sheet carrying features: ``ring`` (black annulus, two concent
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -83,7 +84,41 @@ class Checkerboard:
         return (x0, y0, x0 + self.squares[0] * self.square_size, y0 + self.squares[1] * self.square_size)
 
 
-Feature = Ring | Disc | Checkerboard
+@dataclass(frozen=True)
+class CircleGrid:
+    """rows x cols rings (``kind`` "ring") or discs ("disc") on a square lattice.
+
+    ``origin`` is the centre of the circle in row 0, column 0; column index along +x, row index
+    along +y, ``pitch`` between neighbouring centres."""
+
+    kind: str
+    origin: tuple[float, float]
+    rows: int
+    cols: int
+    pitch: float
+    outer_radius: float
+    inner_radius: float = 0.0  # rings only
+
+    def center(self, row: int, col: int) -> tuple[float, float]:
+        return (self.origin[0] + col * self.pitch, self.origin[1] + row * self.pitch)
+
+    def centers(self) -> np.ndarray:
+        """(rows * cols, 2) centres, row-major."""
+        r, c = np.mgrid[0 : self.rows, 0 : self.cols]
+        return np.stack([self.origin[0] + c.ravel() * self.pitch, self.origin[1] + r.ravel() * self.pitch], 1)
+
+    @property
+    def circles_per_element(self) -> int:
+        return 2 if self.kind == "ring" else 1
+
+    @property
+    def extent(self) -> tuple[float, float, float, float]:
+        r = self.outer_radius
+        x0, y0 = self.origin
+        return (x0 - r, y0 - r, x0 + (self.cols - 1) * self.pitch + r, y0 + (self.rows - 1) * self.pitch + r)
+
+
+Feature = Ring | Disc | Checkerboard | CircleGrid
 
 
 @dataclass(frozen=True)
@@ -94,16 +129,33 @@ class Target:
     discs: tuple[Disc, ...] = ()
     checkerboards: tuple[Checkerboard, ...] = ()
     source: str = field(default="", compare=False)
+    grids: tuple[CircleGrid, ...] = ()
 
-    @property
+    @cached_property
     def circles(self) -> tuple[Circle, ...]:
-        """Every circle edge of the target: rings first (outer, inner), then discs."""
+        """Every circle edge of the target: rings first (outer, inner), then discs, then each
+        grid row-major (a ring grid element contributes outer then inner)."""
         out: list[Circle] = []
         for r in self.rings:
             out.extend(r.circles)
         for d in self.discs:
             out.extend(d.circles)
+        for g in self.grids:
+            for k, (x, y) in enumerate(g.centers()):
+                tag = f"{g.kind}_grid[{k // g.cols},{k % g.cols}]"
+                outer_tag = tag + "/outer" if g.kind == "ring" else tag
+                out.append(Circle((float(x), float(y)), g.outer_radius, True, outer_tag))
+                if g.kind == "ring":
+                    out.append(Circle((float(x), float(y)), g.inner_radius, False, tag + "/inner"))
         return tuple(out)
+
+    def grid_circle_index(self, grid: int, row: int, col: int) -> int:
+        """Index in :attr:`circles` of the (outer) circle of a grid element."""
+        base = 2 * len(self.rings) + len(self.discs)
+        for g in self.grids[:grid]:
+            base += g.rows * g.cols * g.circles_per_element
+        g = self.grids[grid]
+        return base + (row * g.cols + col) * g.circles_per_element
 
     @property
     def checkerboard(self) -> Checkerboard | None:
@@ -111,6 +163,8 @@ class Target:
 
     def default_method(self) -> str:
         """The method a user gets without ``--method``."""
+        if self.grids:
+            return "grid"
         if self.rings:
             return "ring"
         if len(self.discs) >= 2:
@@ -121,10 +175,11 @@ class Target:
 
     def methods(self) -> tuple[str, ...]:
         """Methods this target supports."""
-        out = []
-        if self.rings:
+        out = ["grid"] if self.grids else []
+        ring_grid = any(g.kind == "ring" for g in self.grids)
+        if self.rings or ring_grid:
             out += ["ring", "pt2", "pt1"]
-        if len(self.rings) + len(self.discs) >= 2:
+        if len(self.rings) + len(self.discs) >= 2 or self.grids:
             out.append("huang")
         if self.checkerboards:
             out.append("zhang")
@@ -179,6 +234,7 @@ def parse_target(data: Any, source: str = "<dict>") -> Target:
     rings: list[Ring] = []
     discs: list[Disc] = []
     boards: list[Checkerboard] = []
+    grids: list[CircleGrid] = []
     for i, f in enumerate(feats):
         where = f"{source}: features[{i}]"
         if not isinstance(f, dict):
@@ -209,11 +265,40 @@ def parse_target(data: Any, source: str = "<dict>") -> Target:
             if first not in ("black", "white"):
                 raise TargetError(f"{where}.first_square: 'black' or 'white', got {first!r}")
             boards.append(Checkerboard((o[0], o[1]), (sq[0], sq[1]), size, first))
+        elif kind in ("ring_grid", "disc_grid"):
+            grids.append(_parse_grid(f, kind, where))
         else:
-            raise TargetError(f"{where}: unknown feature type {kind!r} (ring, disc, checkerboard)")
-    target = Target(name, sheet, tuple(rings), tuple(discs), tuple(boards), source)
+            raise TargetError(f"{where}: unknown feature type {kind!r} "
+                              "(ring, disc, checkerboard, ring_grid, disc_grid)")
+    target = Target(name, sheet, tuple(rings), tuple(discs), tuple(boards), source, tuple(grids))
     _check_layout(target)
     return target
+
+
+def _parse_grid(f: dict[str, Any], kind: str, where: str) -> CircleGrid:
+    o = _floats(_require(f, "origin", where), 2, f"{where}.origin")
+    dims = []
+    for key in ("rows", "cols"):
+        v = _require(f, key, where)
+        if not isinstance(v, int) or isinstance(v, bool) or v < 2:
+            raise TargetError(f"{where}.{key}: an integer >= 2, got {v!r}")
+        dims.append(v)
+    pitch = _positive(_require(f, "pitch", where), f"{where}.pitch")
+    if kind == "ring_grid":
+        ro = _positive(_require(f, "outer_radius", where), f"{where}.outer_radius")
+        ri = _positive(_require(f, "inner_radius", where), f"{where}.inner_radius")
+        if ri >= ro:
+            raise TargetError(f"{where}: inner_radius {ri} must be smaller than outer_radius {ro}")
+        if ri / ro > 0.9:
+            raise TargetError(f"{where}: rings too thin (inner/outer = {ri / ro:.2f} > 0.9) to detect both edges")
+    else:
+        ro, ri = _positive(_require(f, "radius", where), f"{where}.radius"), 0.0
+    if 2 * ro >= pitch:
+        raise TargetError(f"{where}: circles of radius {ro} overlap at pitch {pitch} (need 2 r < pitch)")
+    if 2 * ro > 0.8 * pitch:
+        raise TargetError(f"{where}: circles of radius {ro} nearly touch at pitch {pitch}; leave at least "
+                          "20 % of the pitch between them so that edges can be measured")
+    return CircleGrid("ring" if kind == "ring_grid" else "disc", (o[0], o[1]), dims[0], dims[1], pitch, ro, ri)
 
 
 def _check_layout(t: Target) -> None:
@@ -227,6 +312,8 @@ def _check_layout(t: Target) -> None:
         shapes.append(("disc", (x - d.radius, y - d.radius, x + d.radius, y + d.radius)))
     for b in t.checkerboards:
         shapes.append(("checkerboard", b.extent))
+    for g in t.grids:
+        shapes.append((f"{g.kind}_grid", g.extent))
     for name, (x0, y0, x1, y1) in shapes:
         if x0 < 0 or y0 < 0 or x1 > w or y1 > h:
             raise TargetError(f"{t.source}: {name} extends off the {w} x {h} m sheet")
@@ -240,6 +327,12 @@ def _check_layout(t: Target) -> None:
         for c, rad, n in circles:
             if x0 - rad < c[0] < x1 + rad and y0 - rad < c[1] < y1 + rad:
                 raise TargetError(f"{t.source}: {n} overlaps the {name}")
+    boxes = shapes[len(circles):]
+    for i in range(len(boxes)):
+        for j in range(i + 1, len(boxes)):
+            (n1, ba), (n2, bb) = boxes[i], boxes[j]
+            if ba[0] < bb[2] and bb[0] < ba[2] and ba[1] < bb[3] and bb[1] < ba[3]:
+                raise TargetError(f"{t.source}: {n1} and {n2} overlap")
 
 
 def load_target(path: str | Path) -> Target:

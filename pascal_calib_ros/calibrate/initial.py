@@ -74,6 +74,63 @@ def vanishing_line_of_view(det: Detection, target: Target) -> np.ndarray:
     raise CircularPointError("no vanishing line: the view needs the ring or two circles")
 
 
+def _grid_elements(det: Detection, target: Target) -> list[tuple[np.ndarray, np.ndarray | None, np.ndarray]]:
+    """(outer conic, inner conic or None, element centre on the sheet) of each measured element."""
+    by_idx = {e.circle: e for e in det.edges}
+    out = []
+    for e in det.edges:
+        c = target.circles[e.circle]
+        if not c.dark_inside:
+            continue
+        inner = by_idx.get(e.circle + 1)
+        inner_ok = inner is not None and not target.circles[e.circle + 1].dark_inside and \
+            target.circles[e.circle + 1].center == c.center
+        out.append((e.conic, inner.conic if inner_ok and inner is not None else None, np.array(c.center)))
+    return out
+
+
+def circular_points_of_grid_view(det: Detection, target: Target, method: str, max_points: int = 12
+                                 ) -> list[np.ndarray]:
+    """Several i' of one grid view: one per ring element (ring, pt2, pt1), or one per pair of
+    far-apart elements (huang), spread over the board."""
+    elems = _grid_elements(det, target)
+    if len(elems) < 2:
+        raise CircularPointError("fewer than two grid elements measured")
+    centres = np.array([c for _, _, c in elems])
+    pts: list[np.ndarray] = []
+    if method in ("ring", "pt2", "pt1"):
+        rings = [k for k, (_, inner, _) in enumerate(elems) if inner is not None]
+        if not rings:
+            raise CircularPointError(f"method {method!r} needs ring elements")
+        pick = [rings[round(x)] for x in np.linspace(0, len(rings) - 1, min(max_points, len(rings)))]
+        for k in pick:
+            outer, inner, _ = elems[k]
+            assert inner is not None
+            if method == "ring":
+                pts.append(circular_points_from_ring(outer, inner)[0])
+                continue
+            line = vanishing_line_from_centre(outer, centre_image_from_ring(outer, inner))
+            five = pascal_points(outer)
+            res = circular_point_pt2(five, line) if method == "pt2" else circular_points_pt1(five, line)
+            if res.converged:
+                pts.append(res.point)
+    elif method == "huang":
+        order = np.argsort(centres[:, 0] + 1e-3 * centres[:, 1])
+        half = max(1, len(order) // 2)
+        for a, b in zip(order[:half][:max_points], order[::-1][:half][:max_points], strict=False):
+            if a == b:
+                continue
+            try:
+                pts.append(circular_points_huang(elems[a][0], elems[b][0])[0])
+            except CircularPointError:
+                continue
+    else:
+        raise ValueError(f"unknown method {method!r}")
+    if not pts:
+        raise CircularPointError(f"no circular point from the grid by {method}")
+    return pts
+
+
 def intrinsics_closed_form(dets: list[Detection], target: Target, method: str, zero_skew: bool = False
                            ) -> tuple[IacSolution, list[int], dict[int, str]]:
     """K from the circular points of the usable views. Returns the solution, the indices of the
@@ -81,7 +138,10 @@ def intrinsics_closed_form(dets: list[Detection], target: Target, method: str, z
     pts, used, failed = [], [], {}
     for k, d in enumerate(dets):
         try:
-            pts.append(circular_point_of_view(d, target, method))
+            if target.grids:
+                pts.extend(circular_points_of_grid_view(d, target, method))
+            else:
+                pts.append(circular_point_of_view(d, target, method))
             used.append(k)
         except (CircularPointError, np.linalg.LinAlgError) as exc:
             failed[k] = str(exc)
@@ -169,6 +229,115 @@ def _in_plane_rotation(det: Detection, target: Target, K: np.ndarray, R: np.ndar
     ang = np.arctan2(np.sum(P[:, 0] * ob[:, 1] - P[:, 1] * ob[:, 0]), np.sum(P[:, 0] * ob[:, 0] + P[:, 1] * ob[:, 1]))
     # plane coords o = Rz(ang) p: the target's x axis appears rotated by ang in the plane basis
     return R @ rodrigues(np.array([0.0, 0.0, ang]))
+
+
+def pose_from_circles(det: Detection, target: Target, K: np.ndarray, origin: tuple[float, float]) -> PlanePose:
+    """Pose of a board of many circles from K: the plane normal from the vanishing line
+    (n ~ K^T l), every circle's conic back-projected onto the plane at unit distance
+    (H0 = K [r1 r2 n], M = H0^T C H0) gives its exact centre, and a 2-D similarity (Umeyama)
+    between those centres and the sheet's gives the rotation about n and the distance (1/scale).
+    No fitted-ellipse centre is used: they are biased under perspective."""
+    elems = _grid_elements(det, target) if target.grids else [
+        (e.conic, None, np.array(target.circles[e.circle].center)) for e in det.edges
+        if target.circles[e.circle].dark_inside]
+    if len(elems) < 3:
+        raise CircularPointError("fewer than three circles for a board pose")
+    lines = []
+    for outer, inner, _ in elems:
+        if inner is not None:
+            lines.append(vanishing_line_from_centre(outer, centre_image_from_ring(outer, inner)))
+    if not lines:
+        centres_img = np.array([Ellipse.from_conic(o).cx for o, _, _ in elems])
+        a, b = int(np.argmin(centres_img)), int(np.argmax(centres_img))
+        lines.append(vanishing_line_huang(elems[a][0], elems[b][0]))
+    ref = lines[0]
+    line = np.mean([ln if ln @ ref >= 0 else -ln for ln in lines], axis=0)
+    n = K.T @ line
+    n = n / np.linalg.norm(n)
+    e0 = Ellipse.from_conic(elems[0][0])
+    c0 = np.linalg.solve(K, np.array([e0.cx, e0.cy, 1.0]))
+    if n @ c0 < 0:
+        n = -n
+    r1 = np.cross([0.0, 1.0, 0.0], n)
+    r1 /= np.linalg.norm(r1)
+    r2 = np.cross(n, r1)
+    H0 = K @ np.column_stack([r1, r2, n])
+    obs, ref_pts = [], []
+    for outer, _, centre in elems:
+        M = H0.T @ normalize_conic(outer) @ H0
+        try:
+            obs.append(-np.linalg.solve(M[:2, :2], M[:2, 2]))
+        except np.linalg.LinAlgError:
+            continue
+        ref_pts.append(centre - np.array(origin))
+    ob, P = np.array(obs), np.array(ref_pts)
+    mo, mp = ob.mean(0), P.mean(0)
+    U, S, Vt = np.linalg.svd((ob - mo).T @ (P - mp))
+    if np.linalg.det(U @ Vt) < 0:
+        raise CircularPointError("the circles' layout is mirrored against the target: wrong target file?")
+    Rth = U @ Vt
+    s = S.sum() / np.sum((P - mp) ** 2)
+    d = 1.0 / s
+    t_m = d * (mo - s * Rth @ mp)
+    R = np.column_stack([r1, r2, n]) @ np.block([[Rth, np.zeros((2, 1))], [np.zeros((1, 2)), np.ones((1, 1))]])
+    t = np.column_stack([r1, r2]) @ t_m + d * n
+    return PlanePose(R, t)
+
+
+def _homography(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    """Normalised DLT homography (plane -> image)."""
+    import cv2
+
+    H, _ = cv2.findHomography(src.astype(np.float64), dst.astype(np.float64), 0)
+    if H is None:
+        raise CircularPointError("no homography from the grid centres")
+    return np.asarray(H, float)
+
+
+def grid_homography_init(dets: list[Detection], target: Target, origin: tuple[float, float], zero_skew: bool
+                         ) -> tuple[IacSolution, list[PlanePose | None]]:
+    """Approximate start for grid boards (method ``grid``): a homography per view from the
+    element centres (fitted-ellipse centres of the plumb-line corrected edges: biased by up to a
+    pixel under perspective, which is fine for a start and never used afterwards), Zhang's
+    constraints i' = h1 + i h2 on w, K by Cholesky, poses from H and K (Zhang 2000, sec. 3.1).
+    The refinement then fits every edge point to its projected circle."""
+    Hs: list[np.ndarray | None] = []
+    pts = []
+    for d in dets:
+        src, dst = [], []
+        for e in d.edges:
+            c = target.circles[e.circle]
+            if not c.dark_inside:
+                continue
+            try:
+                el = Ellipse.from_conic(e.conic)
+            except Exception:
+                continue
+            src.append([c.center[0] - origin[0], c.center[1] - origin[1]])
+            dst.append([el.cx, el.cy])
+        if len(src) < 6:
+            Hs.append(None)
+            continue
+        H = _homography(np.array(src), np.array(dst))
+        Hs.append(H)
+        pts.append(H[:, 0] + 1j * H[:, 1])
+    sol = iac_from_circular_points(pts, dets[0].width, dets[0].height, zero_skew)
+    Ki = np.linalg.inv(sol.K)
+    poses: list[PlanePose | None] = []
+    for H in Hs:
+        if H is None:
+            poses.append(None)
+            continue
+        lam = 1.0 / np.linalg.norm(Ki @ H[:, 0])
+        if (Ki @ H[:, 2])[2] * lam < 0:
+            lam = -lam
+        r1, r2, t = lam * Ki @ H[:, 0], lam * Ki @ H[:, 1], lam * Ki @ H[:, 2]
+        U, _, Vt = np.linalg.svd(np.column_stack([r1, r2, np.cross(r1, r2)]))
+        R = U @ Vt
+        if np.linalg.det(R) < 0:
+            R = U @ np.diag([1, 1, -1]) @ Vt
+        poses.append(PlanePose(R, t))
+    return sol, poses
 
 
 def pose_to_params(pose: PlanePose, dof: int) -> np.ndarray:

@@ -14,11 +14,19 @@ from ..detect.rings import Detection
 from ..geometry.circular import CircularPointError
 from ..geometry.iac import DegenerateViewsError
 from ..targets import Target
-from .initial import CIRCLE_METHODS, intrinsics_closed_form, pose_from_view, pose_to_params
+from .initial import (
+    CIRCLE_METHODS,
+    grid_homography_init,
+    intrinsics_closed_form,
+    pose_from_circles,
+    pose_from_view,
+    pose_to_params,
+)
+from .plumbline import division_parameter, plumb_bob_from_division, undistort_detections
 from .refine import DISTORTION_MODELS, INTRINSIC_NAMES, RefineResult, ViewData, refine
 from .zhang import calibrate_zhang
 
-METHODS = (*CIRCLE_METHODS, "zhang")
+METHODS = (*CIRCLE_METHODS, "grid", "zhang")
 MIN_VIEWS = 3
 
 
@@ -28,13 +36,14 @@ class CalibrationError(ValueError):
 
 @dataclass(frozen=True)
 class CalibrationOptions:
-    method: str = "ring"
+    method: str = ""  # empty: the target's natural method (Target.default_method)
     refine: bool = True
     distortion: str = "plumb_bob"
     zero_skew: bool = True
     edge_offsets: bool = True
     use_corners: bool = True  # adjust checkerboard corners too, when the target has them
     max_points_per_edge: int = 150
+    max_points_per_view: int = 700  # grids: spread over all edges (speed of the refinement)
     outlier_factor: float = 4.0  # drop a view whose RMS exceeds this times the median
     min_views: int = MIN_VIEWS
 
@@ -105,6 +114,10 @@ def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions
               ) -> CalibrationResult:
     """Calibrate from detections (one per view, rejected ones included for the report)."""
     opt = options
+    if not opt.method:
+        from dataclasses import replace
+
+        opt = replace(opt, method=target.default_method())
     if opt.method not in METHODS:
         raise CalibrationError(f"unknown method {opt.method!r}; choose one of {', '.join(METHODS)}")
     if opt.method not in target.methods():
@@ -128,8 +141,21 @@ def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions
     if opt.method == "zhang":
         return _zhang(dets, target, opt, reports, w, h)
     good = [dets[k] for k in usable]
+    lam = 0.0
+    init_dets = dets
+    if target.grids and opt.distortion != "none":
+        # grids are used with strongly distorting lenses: straighten the rows first (plumb line)
+        lam = division_parameter(good, target)
+        init_dets = undistort_detections(dets, lam)
+        good = [init_dets[k] for k in usable]
+    grid_poses: list = []
     try:
-        sol, used_local, failed = intrinsics_closed_form(good, target, opt.method, opt.zero_skew)
+        if opt.method == "grid":
+            sol, grid_poses = grid_homography_init(good, target, target.circles[0].center, opt.zero_skew)
+            used_local = [k for k, p in enumerate(grid_poses) if p is not None]
+            failed = {k: "fewer than 6 grid elements" for k, p in enumerate(grid_poses) if p is None}
+        else:
+            sol, used_local, failed = intrinsics_closed_form(good, target, opt.method, opt.zero_skew)
     except DegenerateViewsError as exc:
         raise CalibrationError(str(exc)) from None
     for k_local, why in failed.items():
@@ -147,16 +173,28 @@ def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions
     views, poses0, idx = [], [], []
     for k in used:
         try:
-            pose = pose_from_view(dets[k], target, sol.K, origin)
+            if grid_poses:
+                pose = grid_poses[usable.index(k)]
+            elif target.grids:
+                pose = pose_from_circles(init_dets[k], target, sol.K, origin)
+            else:
+                pose = pose_from_view(dets[k], target, sol.K, origin)
         except (CircularPointError, np.linalg.LinAlgError) as exc:
             reports[k].used, reports[k].reason = False, f"pose: {exc}"
             continue
-        views.append(view_data(dets[k], target, origin, opt.max_points_per_edge, opt.use_corners))
+        n_edges = max(len(dets[k].edges), 1)
+        per_edge = max(8, min(opt.max_points_per_edge, opt.max_points_per_view // n_edges))
+        views.append(view_data(dets[k], target, origin, per_edge, opt.use_corners))
         poses0.append(pose_to_params(pose, dof))
         idx.append(k)
     if len(idx) < opt.min_views:
         raise CalibrationError(f"only {len(idx)} view(s) gave a pose; need {opt.min_views}")
-    res = refine(views, sol.K, np.zeros(5), poses0, dof, opt.distortion, opt.zero_skew, opt.edge_offsets)
+    D0 = np.zeros(5)
+    if lam and "k1" in DISTORTION_MODELS[opt.distortion]:
+        r_max = max(float(np.max(np.hypot(*(e.points - [w / 2, h / 2]).T))) for k in used for e in dets[k].edges)
+        D0[0], D0[1] = plumb_bob_from_division(lam, float(np.sqrt(sol.K[0, 0] * sol.K[1, 1])), r_max,
+                                               "k2" in DISTORTION_MODELS[opt.distortion])
+    res = refine(views, sol.K, D0, poses0, dof, opt.distortion, opt.zero_skew, opt.edge_offsets)
     # drop outlier views (moved during exposure, wrong detection) and refit once
     med = float(np.median(res.view_rms))
     bad = [i for i, r in enumerate(res.view_rms) if r > opt.outlier_factor * max(med, 0.02)]

@@ -54,6 +54,7 @@ class Detection:
     corners: np.ndarray | None = None  # (N, 2) checkerboard inner corners, target order
     reason: str = ""  # empty when usable
     name: str = ""
+    note: str = ""  # what was left out of a usable view
 
     @property
     def ok(self) -> bool:
@@ -192,6 +193,8 @@ def detect_target(image: np.ndarray, target: Target, params: DetectionParams = D
     work = gray
     if params.gamma != 1.0:
         work = (255.0 * (np.clip(gray, 0, 255) / 255.0) ** params.gamma).astype(np.float32)
+    if target.grids:
+        return _detect_grids(gray, work, target, params, det)
     blobs, cut_shapes = find_blobs(gray, params)
     if target.rings:
         try:
@@ -234,6 +237,31 @@ def detect_target(image: np.ndarray, target: Target, params: DetectionParams = D
 
 class _Reject(Exception):
     pass
+
+
+def _detect_grids(gray: np.ndarray, work: np.ndarray, target: Target, params: DetectionParams,
+                  det: Detection) -> Detection:
+    from dataclasses import replace
+
+    from .grids import GridError, detect_grid
+
+    blobs, _ = find_blobs(gray, replace(params, min_radius=min(params.min_radius, 4.0)))
+    notes = []
+    for gi in range(len(target.grids)):
+        try:
+            edges, note = detect_grid(gray, work, blobs, target, gi, params.max_blur, params.edge_spacing,
+                                      params.curvature_correction, params.border_margin)
+        except GridError as e:
+            det.reason = str(e)
+            return det
+        det.edges += [CircleEdge(i, p, c, w, r) for i, p, c, w, r in edges]
+        if note:
+            notes.append(note)
+    n_elem = len({e.circle for e in det.edges if target.circles[e.circle].dark_inside})
+    if n_elem < 6:
+        det.reason = f"only {n_elem} grid element(s) measured; need 6"
+    det.note = "; ".join(notes)
+    return det
 
 
 def _pick_ring(blobs: list[_Blob], target: Target, params: DetectionParams, cut_shapes: int = 0

@@ -16,6 +16,9 @@ INCH = 0.0254
 def _describe(t: Target) -> str:
     parts = [f"ring r {1000 * r.outer_radius:g}/{1000 * r.inner_radius:g} mm" for r in t.rings]
     parts += [f"disc r {1000 * d.radius:g} mm" for d in t.discs]
+    parts += [f"{g.rows}x{g.cols} {g.kind}s r {1000 * g.outer_radius:g}"
+              + (f"/{1000 * g.inner_radius:g}" if g.kind == "ring" else "") + f" mm, pitch {1000 * g.pitch:g} mm"
+              for g in t.grids]
     parts += [f"checkerboard {b.squares[0]}x{b.squares[1]} squares of {1000 * b.square_size:g} mm"
               for b in t.checkerboards]
     return f"{t.name}: sheet {1000 * t.sheet[0]:g} x {1000 * t.sheet[1]:g} mm; " + ", ".join(parts)
@@ -43,6 +46,11 @@ def write_printable(target: Target, path: str | Path) -> Path:
         ax.add_patch(Circle(r.center, r.inner_radius, color="white", lw=0))
     for d in target.discs:
         ax.add_patch(Circle(d.center, d.radius, color="black", lw=0))
+    for g in target.grids:
+        for x, y in g.centers():
+            ax.add_patch(Circle((x, y), g.outer_radius, color="black", lw=0))
+            if g.kind == "ring":
+                ax.add_patch(Circle((x, y), g.inner_radius, color="white", lw=0))
     for b in target.checkerboards:
         for i in range(b.squares[0]):
             for j in range(b.squares[1]):

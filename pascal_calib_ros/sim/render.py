@@ -126,6 +126,16 @@ def reflectance(target: Target, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarra
         dx, dy = x - disc.center[0], y - disc.center[1]
         rho = np.maximum(np.hypot(dx, dy), 1e-15)
         dark += _soft_step(rho - disc.radius, *pix_grad(dx / rho, dy / rho))
+    for g in target.grids:
+        # nearest lattice centre of every pixel: O(1) per pixel whatever the number of circles
+        col = np.clip(np.round((x - g.origin[0]) / g.pitch), 0, g.cols - 1)
+        row = np.clip(np.round((y - g.origin[1]) / g.pitch), 0, g.rows - 1)
+        dx, dy = x - (g.origin[0] + col * g.pitch), y - (g.origin[1] + row * g.pitch)
+        rho = np.maximum(np.hypot(dx, dy), 1e-15)
+        gu, gv = pix_grad(dx / rho, dy / rho)
+        dark += _soft_step(rho - g.outer_radius, gu, gv)
+        if g.kind == "ring":
+            dark -= _soft_step(rho - g.inner_radius, gu, gv)
     for b in target.checkerboards:
         fx = (x - b.origin[0]) / b.square_size
         fy = (y - b.origin[1]) / b.square_size
@@ -232,10 +242,11 @@ def feature_outline(target: Target, n: int = 64) -> np.ndarray:
     """Points on every circle and the checkerboard outline (target plane, (N, 2))."""
     pts = []
     t = np.linspace(0, 2 * np.pi, n, endpoint=False)
-    for c in target.circles:
+    for c in target.circles[: 2 * len(target.rings) + len(target.discs)]:
         pts.append(np.stack([c.center[0] + c.radius * np.cos(t), c.center[1] + c.radius * np.sin(t)], 1))
-    for b in target.checkerboards:
-        x0, y0, x1, y1 = b.extent
+    boxes: list[tuple[float, float, float, float]] = [b.extent for b in target.checkerboards]
+    boxes += [g.extent for g in target.grids]
+    for x0, y0, x1, y1 in boxes:
         pts.append(np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]]))
     return np.concatenate(pts)
 

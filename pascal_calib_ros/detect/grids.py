@@ -1,0 +1,230 @@
+"""Grids of rings or discs: find every element, give it a row and a column, measure its edges.
+
+1. Elliptical dark blobs (``find_blobs``): ring elements have a concentric hole of the expected
+   radius ratio, disc elements none. Sizes must agree with their neighbours.
+2. Lattice growth from a seed whose four nearest neighbours form a cross: each labelled element
+   carries its two local lattice vectors, predicts its four neighbours, and takes the blob found
+   within 30 % of a step. Local vectors follow perspective and strong distortion. An element
+   reached twice with different labels means the lattice is ambiguous: the view is rejected.
+3. Labels: the lattice of a regular grid is the same up to a translation and a rotation by a
+   multiple of 90 degrees (180 for rows != cols) of the board; any labelling that maps the found
+   elements onto the printed lattice without mirroring is therefore an exact correspondence (the
+   board pose absorbs the difference). The labelling is chosen to fit inside rows x cols;
+   partially visible boards keep the fully visible elements. Mirror images are not accepted.
+4. Subpixel edges of every element (both edges of a ring) with :func:`refine_edge`; an element
+   whose edge cannot be measured (clutter, occlusion) is dropped, never guessed.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+
+from ..geometry.conic import Ellipse
+from ..targets import CircleGrid, Target
+from .edges import refine_edges_batch
+
+
+class GridError(ValueError):
+    pass
+
+
+def _element_candidates(blobs: list, grid: CircleGrid) -> list[tuple[Ellipse, Ellipse | None, bool]]:
+    """(outer ellipse, inner ellipse or None, touches border) for each blob that can be an element."""
+    out = []
+    ratio = grid.inner_radius / grid.outer_radius if grid.kind == "ring" else 0.0
+    for b in blobs:
+        size = np.sqrt(b.ellipse.a * b.ellipse.b)
+        hole = None
+        for _, he in b.holes:
+            r = np.sqrt(he.a * he.b) / size
+            off = np.hypot(he.cx - b.ellipse.cx, he.cy - b.ellipse.cy) / size
+            if grid.kind == "ring" and off < 0.2 and abs(r / ratio - 1) < 0.4:
+                hole = he
+        if grid.kind == "ring" and hole is None:
+            continue
+        if grid.kind == "disc" and any(np.sqrt(e.a * e.b) > 0.25 * size for _, e in b.holes):
+            continue
+        out.append((b.ellipse, hole, b.touches_border))
+    return out
+
+
+def label_lattice(centres: np.ndarray, sizes: np.ndarray) -> dict[int, tuple[int, int]]:
+    """Integer lattice coordinates (i, j) for the candidates connected to the best seed."""
+    n = len(centres)
+    if n < 5:
+        raise GridError(f"only {n} grid-like circle(s) found")
+    d = np.linalg.norm(centres[:, None] - centres[None], axis=2)
+    np.fill_diagonal(d, np.inf)
+    order = np.argsort(d, axis=1)[:, : min(8, n - 1)]
+
+    def cross_quality(k: int) -> tuple[float, np.ndarray, np.ndarray] | None:
+        """Two lattice steps at k: the shortest neighbour vector with an opposite partner, then the
+        shortest non-parallel one with an opposite partner (foreshortening may make them differ
+        by a factor of 3)."""
+        vecs = centres[order[k]] - centres[k]
+        lens = np.linalg.norm(vecs, axis=1)
+        basis: list[np.ndarray] = []
+        for a in np.argsort(lens):
+            va = vecs[a]
+            if basis and abs(basis[0][0] * va[1] - basis[0][1] * va[0]) < 0.5 * lens[a] * np.linalg.norm(basis[0]):
+                continue  # parallel to the first step
+            opp = np.linalg.norm(vecs + va, axis=1)
+            b = int(np.argmin(opp))
+            if opp[b] > 0.25 * lens[a]:
+                continue
+            basis.append((va - vecs[b]) / 2)
+            if len(basis) == 2:
+                break
+        if len(basis) < 2:
+            return None
+        u, v = basis
+        ratio = np.linalg.norm(u) / np.linalg.norm(v)
+        if not 1 / 3 < ratio < 3:
+            return None
+        c = abs(u[0] * v[1] - u[1] * v[0]) / (np.linalg.norm(u) * np.linalg.norm(v))
+        return c, u, v
+
+    centroid = centres.mean(0)
+    seeds = []
+    for k in range(n):
+        q = cross_quality(k)
+        if q is not None and q[0] > 0.5:
+            seeds.append((np.linalg.norm(centres[k] - centroid), k, q[1], q[2]))
+    if not seeds:
+        raise GridError("no element with four grid neighbours: not a grid, or too few circles visible")
+    seeds.sort(key=lambda s: s[0])
+    _, seed, u0, v0 = seeds[0]
+    labels: dict[int, tuple[int, int]] = {seed: (0, 0)}
+    vectors: dict[int, tuple[np.ndarray, np.ndarray]] = {seed: (u0, v0)}
+    taken: dict[tuple[int, int], int] = {(0, 0): seed}
+    queue = deque([seed])
+    while queue:
+        k = queue.popleft()
+        i, j = labels[k]
+        u, v = vectors[k]
+        for (di, dj), step in (((1, 0), u), ((-1, 0), -u), ((0, 1), v), ((0, -1), -v)):
+            back = taken.get((i - di, j - dj))
+            if back is not None:  # continue the line through the previous elements: follows
+                step = centres[k] - centres[back]  # perspective and distortion
+                back2 = taken.get((i - 2 * di, j - 2 * dj))
+                if back2 is not None:  # spacing changes geometrically along a line under perspective
+                    prev = centres[back] - centres[back2]
+                    ratio = float(np.linalg.norm(step)) / max(float(np.linalg.norm(prev)), 1e-9)
+                    step = step * float(np.clip(ratio, 0.7, 1.4))
+            else:  # parallelogram rule from an adjacent, already labelled line
+                for si, sj in ((dj, di), (-dj, -di)):
+                    a_, b_ = taken.get((i + si, j + sj)), taken.get((i + si + di, j + sj + dj))
+                    if a_ is not None and b_ is not None:
+                        step = centres[b_] - centres[a_]
+                        break
+            pred = centres[k] + step
+            dist = np.linalg.norm(centres - pred, axis=1)
+            m, m2 = (int(x) for x in np.argsort(dist)[:2])
+            # an unambiguous match only: close to the prediction, the runner-up far from it
+            if (dist[m] > 0.3 * np.linalg.norm(step) or dist[m2] < 0.6 * np.linalg.norm(step)
+                    or not (0.6 < sizes[m] / sizes[k] < 1.6)):
+                continue
+            lab = (i + di, j + dj)
+            if m in labels:
+                if labels[m] != lab:
+                    raise GridError(f"inconsistent grid labelling: element at ({centres[m][0]:.0f}, "
+                                    f"{centres[m][1]:.0f}) reached as {labels[m]} and {lab}")
+                continue
+            if lab in taken:
+                continue
+            labels[m] = lab
+            taken[lab] = m
+            actual = centres[m] - centres[k]
+            if di:
+                vectors[m] = (actual * di, v)
+            else:
+                vectors[m] = (u, actual * dj)
+            queue.append(m)
+    return labels
+
+
+def detect_grid(gray: np.ndarray, work: np.ndarray, blobs: list, target: Target, grid_index: int,
+                max_blur: float, spacing: float, curvature_correction: bool, border_margin: float
+                ) -> tuple[list[tuple[int, np.ndarray, np.ndarray, float, float]], str]:
+    """Edges of the grid's elements: (circle index, points, conic, width, rms) for every measured
+    edge, and a note on what was dropped. Raises :class:`GridError` when the grid is not usable."""
+    grid = target.grids[grid_index]
+    cands = _element_candidates(blobs, grid)
+    if len(cands) < 5:
+        raise GridError(f"no {grid.kind} grid found ({len(cands)} {grid.kind}-like circle(s))")
+    centres = np.array([[e.cx, e.cy] for e, _, _ in cands])
+    sizes = np.array([np.sqrt(e.a * e.b) for e, _, _ in cands])
+    labels = label_lattice(centres, sizes)
+    if len(labels) < 6:
+        raise GridError(f"only {len(labels)} connected grid element(s) found")
+    ij = np.array(list(labels.values()))
+    keys = list(labels.keys())
+    # a lattice has many bases: if the seed's steps were a diagonal and a side, the labels are a
+    # sheared copy of the rows and columns; undo the shear that makes the labelled set most compact
+    best = None
+    for T in (np.eye(2, dtype=int), *(np.array(m) for m in ([[1, 1], [0, 1]], [[1, -1], [0, 1]],
+                                                             [[1, 0], [1, 1]], [[1, 0], [-1, 1]]))):
+        t_ij = ij @ T.T
+        area = (np.ptp(t_ij[:, 0]) + 1) * (np.ptp(t_ij[:, 1]) + 1)
+        if best is None or area < best[0]:
+            best = (area, t_ij)
+    assert best is not None
+    ij = best[1]
+    labels = {k: (int(a), int(b)) for k, (a, b) in zip(keys, ij, strict=True)}
+    # orientation: +i and +j image directions must not be mirrored with respect to the target's x, y
+    ci = {lab: centres[k] for k, lab in labels.items()}
+    du = [ci[(a + 1, b)] - ci[(a, b)] for (a, b) in ci if (a + 1, b) in ci]
+    dv = [ci[(a, b + 1)] - ci[(a, b)] for (a, b) in ci if (a, b + 1) in ci]
+    if not du or not dv:
+        raise GridError("grid elements found along one line only")
+    mu, mv = np.mean(du, 0), np.mean(dv, 0)
+    flip_j = (mu[0] * mv[1] - mu[1] * mv[0]) < 0  # i -> col (x), j -> row (y) must keep handedness
+    if flip_j:
+        ij[:, 1] = -ij[:, 1]
+    span_i, span_j = int(np.ptp(ij[:, 0])) + 1, int(np.ptp(ij[:, 1])) + 1
+    if span_i <= grid.cols and span_j <= grid.rows:
+        cols_idx, rows_idx = ij[:, 0] - ij[:, 0].min(), ij[:, 1] - ij[:, 1].min()
+    elif span_j <= grid.cols and span_i <= grid.rows:
+        # rotate the labelling by 90 degrees (i, j) -> (j, -i): still not mirrored
+        cols_idx, rows_idx = ij[:, 1] - ij[:, 1].min(), (-ij[:, 0]) - (-ij[:, 0]).min()
+    else:
+        raise GridError(f"found a {span_i} x {span_j} lattice, larger than the {grid.cols} x {grid.rows} grid "
+                        "(another grid or clutter in view?)")
+    edges: list[tuple[int, np.ndarray, np.ndarray, float, float]] = []
+    dropped = 0
+    # one batched measurement for all edges; the profile window must not reach the next edge
+    conics, windows, idx_of = [], [], []
+    for k, r, c in zip(keys, rows_idx, cols_idx, strict=True):
+        outer, inner, touches = cands[k]
+        if touches:
+            dropped += 1
+            continue
+        idx = target.grid_circle_index(grid_index, int(r), int(c))
+        so = float(np.sqrt(outer.a * outer.b))
+        band = so - float(np.sqrt(inner.a * inner.b)) if inner is not None else so
+        hw = float(np.clip(0.45 * band, 1.5, 25.0))
+        conics.append(outer.to_conic())
+        windows.append(hw)
+        idx_of.append(idx)
+        if grid.kind == "ring" and inner is not None:
+            conics.append(inner.to_conic())
+            windows.append(hw)
+            idx_of.append(idx + 1)
+    for passes in range(2):  # a sparse pass re-centres the curves, the second measures them
+        step = (4.0 if passes == 0 else 2.0) * spacing / 1.5
+        fits = refine_edges_batch(work, conics, np.array(windows), spacing=step, max_width=max_blur,
+                                  curvature_correction=curvature_correction)
+        if passes == 0:
+            conics = [f.conic if f is not None else C for f, C in zip(fits, conics, strict=True)]
+    measured = {i for i, f in zip(idx_of, fits, strict=True) if f is not None}
+    for i, f in zip(idx_of, fits, strict=True):
+        outer_idx = i if target.circles[i].dark_inside else i - 1
+        if f is None or outer_idx not in measured or (grid.kind == "ring" and outer_idx + 1 not in measured):
+            continue  # an element counts only with all its edges measured
+        edges.append((i, f.points, f.conic, float(np.median(f.width)), f.rms))
+    dropped += len({i if target.circles[i].dark_inside else i - 1 for i in idx_of}) - len(
+        {e[0] for e in edges if target.circles[e[0]].dark_inside})
+    note = f"{dropped} element(s) dropped (at the border or edge not measurable)" if dropped else ""
+    return edges, note
