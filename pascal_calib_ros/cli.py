@@ -278,7 +278,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.set_defaults(func=cmd_experiment)
 
     s = sub.add_parser("study", help="accuracy studies against ground truth (see README)")
-    s.add_argument("name", choices=["accuracy", "edge-bias"])
+    s.add_argument("name", choices=["accuracy", "edge-bias", "grids"])
     s.add_argument("--out", default="out/study")
     s.add_argument("--views", type=int, default=15)
     s.add_argument("--seed", type=int, default=1)

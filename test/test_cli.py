@@ -75,6 +75,6 @@ def test_bench_json_shape() -> None:
     r = run("bench", "--json", "--quick")
     assert r.returncode == 0, r.stderr
     data = json.loads(r.stdout)
-    assert [d["size"] for d in data["detect"]] == ["800x600", "1920x1080", "2456x2058"]
+    assert [d["size"] for d in data["detect"]] == ["800x600", "1920x1080", "2456x2058", "1024x768 grid of 70 discs"]
     assert all(d["detect_ms"] > 0 and d["canny_ms"] > 0 for d in data["detect"])
-    assert [c["views"] for c in data["calibrate"]] == [3, 10, 20]
+    assert [c["views"] for c in data["calibrate"]] == [3, 10, 20, 20]

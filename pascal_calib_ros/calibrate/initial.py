@@ -324,10 +324,11 @@ def grid_homography_init(dets: list[Detection], target: Target, origin: tuple[fl
     sol = iac_from_circular_points(pts, dets[0].width, dets[0].height, zero_skew)
     Ki = np.linalg.inv(sol.K)
     poses: list[PlanePose | None] = []
-    for H in Hs:
-        if H is None:
+    for Hv in Hs:
+        if Hv is None:
             poses.append(None)
             continue
+        H = Hv
         lam = 1.0 / np.linalg.norm(Ki @ H[:, 0])
         if (Ki @ H[:, 2])[2] * lam < 0:
             lam = -lam

@@ -430,20 +430,36 @@ def run_board(trials: int, seed: int) -> list[dict[str, Any]]:
     return rows
 
 
-def _reconstruct_angles(K: np.ndarray, D: np.ndarray, c1: np.ndarray, c2: np.ndarray, nx: int, ny: int
-                        ) -> tuple[float, float]:
-    """Two-view reconstruction of the grid with K (essential matrix, triangulation) and the mean
-    angles between lines that should be parallel (rows with rows, columns with columns) and
-    perpendicular (rows with columns), degrees."""
-    u1 = cv2.undistortPoints(c1.reshape(-1, 1, 2), K, D).reshape(-1, 2)
-    u2 = cv2.undistortPoints(c2.reshape(-1, 1, 2), K, D).reshape(-1, 2)
-    E, _ = cv2.findEssentialMat(u1, u2, np.eye(3), method=cv2.LMEDS)
-    if E is None:
-        raise Failure("no essential matrix")
-    _, R, t, _ = cv2.recoverPose(E[:3], u1, u2, np.eye(3))
+def _decompositions(u1: np.ndarray, u2: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Homography decompositions (R, t, n) with every point in front of both cameras."""
+    H, _ = cv2.findHomography(u1, u2, 0)
+    if H is None:
+        raise Failure("no homography between the views")
+    _, Rs, ts, ns = cv2.decomposeHomographyMat(H, np.eye(3))
+    out = []
     P1 = np.hstack([np.eye(3), np.zeros((3, 1))])
-    P2 = np.hstack([R, t])
-    X = cv2.triangulatePoints(P1, P2, u1.T, u2.T)
+    for R, t, n in zip(Rs, ts, ns, strict=True):
+        X = cv2.triangulatePoints(P1, np.hstack([R, t]), u1.T, u2.T)
+        X = (X[:3] / X[3]).T
+        if np.all(X[:, 2] > 0) and np.all((X @ R.T + t.ravel())[:, 2] > 0):
+            out.append((R, t, n.ravel()))
+    return out
+
+
+def _reconstruct_angles(K: np.ndarray, D: np.ndarray, c1: np.ndarray, c2: np.ndarray, c3: np.ndarray, nx: int,
+                        ny: int) -> tuple[float, float]:
+    """Two-view reconstruction of the (planar) grid with K, from the corners of views 1 and 2:
+    the inter-image homography of the undistorted normalised corners is decomposed into
+    (R, t/d, n); of the two physically valid decompositions, the one whose plane normal agrees
+    with the decomposition towards a third view is kept. The corners are triangulated and the
+    mean angles between lines that should be parallel (rows with rows, columns with columns)
+    and perpendicular (rows with columns) are returned, in degrees. No board dimension is used."""
+    u = [cv2.undistortPoints(c.reshape(-1, 1, 2), K, D).reshape(-1, 2) for c in (c1, c2, c3)]
+    d12, d13 = _decompositions(u[0], u[1]), _decompositions(u[0], u[2])
+    if not d12 or not d13:
+        raise Failure("no homography decomposition with the points in front of the cameras")
+    R, t, _ = max(d12, key=lambda s: max(abs(float(s[2] @ o[2])) for o in d13))
+    X = cv2.triangulatePoints(np.hstack([np.eye(3), np.zeros((3, 1))]), np.hstack([R, t]), u[0].T, u[1].T)
     X = (X[:3] / X[3]).T.reshape(ny, nx, 3)
 
     def direction(pts: np.ndarray) -> np.ndarray:
@@ -472,11 +488,11 @@ def run_reconstruct(trials: int, seed: int) -> list[dict[str, Any]]:
         Ks, par, perp = [], [], []
         for _, dets in sessions:
             try:
-                res = calibrate(dets[2:], target, CalibrationOptions(method=method, refine=refined))
-                pair = [d for d in dets[:2] if d.corners is not None]
-                if len(pair) < 2:
+                res = calibrate(dets[3:], target, CalibrationOptions(method=method, refine=refined))
+                trio = [d.corners for d in dets[:3] if d.corners is not None]
+                if len(trio) < 3:
                     continue
-                a, b = _reconstruct_angles(res.K, res.D, pair[0].corners, pair[1].corners, nx, ny)  # type: ignore[arg-type]
+                a, b = _reconstruct_angles(res.K, res.D, trio[0], trio[1], trio[2], nx, ny)
                 Ks.append(res.K)
                 par.append(a)
                 perp.append(b)
