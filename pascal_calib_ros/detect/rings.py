@@ -121,7 +121,7 @@ def find_blobs(gray: np.ndarray, params: DetectionParams) -> tuple[list[_Blob], 
         if mode == "otsu":
             _, mask = cv2.threshold(small8, 0, 255, cv2.THRESH_BINARY_INV | cv2.THRESH_OTSU)
         else:
-            block = (max(small8.shape) // 8) | 1
+            block = max(3, (max(small8.shape) // 8) | 1)
             mask = cv2.adaptiveThreshold(small8, 255, cv2.ADAPTIVE_THRESH_MEAN_C, cv2.THRESH_BINARY_INV, block, 10)
         blobs, cut = _blobs_from_mask(mask, scale, w, h, params, grad)
         if any(b.holes for b in blobs) or mode == "adaptive":
@@ -186,6 +186,9 @@ def detect_target(image: np.ndarray, target: Target, params: DetectionParams = D
     det = Detection(w, h, name=name)
     if gray.size == 0 or not np.isfinite(gray).all():
         det.reason = "empty or invalid image"
+        return det
+    if min(h, w) < 16:
+        det.reason = f"image too small ({w}x{h})"
         return det
     if float(gray.max() - gray.min()) < 20:
         det.reason = "no contrast in the image (lens cap, exposure?)"
