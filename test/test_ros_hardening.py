@@ -67,27 +67,31 @@ def test_node_survives_a_stream_of_malformed_messages(tmp_path: Path) -> None:
     try:
         status = _status(client)
         infos = _infos(client)
-        # a best-effort camera (the node's qos=auto follows it): reliable DDS would pace the burst
-        qos = QoSProfile(depth=50, reliability=ReliabilityPolicy.BEST_EFFORT)
+        qos = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
         pub = client.node.create_publisher(Image, "/image", qos)
         assert client.spin_until(lambda: pub.get_subscription_count() > 0, 20)
-        client.spin_until(lambda: "best-effort QoS" in cal.log(), 10)
         rng = np.random.default_rng(0)
         msgs = _malformed_images(rng, 2000)
         noise = Image(height=120, width=160, encoding="mono8", step=160)
         noise.data = rng.integers(0, 255, 160 * 120, dtype=np.uint8).tobytes()  # valid, but no target
         import time
 
-        for k, m in enumerate(msgs):
+        # at least 1000 malformed messages at ~500 Hz, more until the node has examined 15 of them
+        # (how many reach it depends on DDS and the machine's load; it keeps only the newest)
+        sent = 0
+        for k, m in enumerate(msgs * 3):
             pub.publish(noise if k % 10 == 0 else m)
-            time.sleep(0.002)  # a 500 Hz camera: fast, but not an infinitely fast burst
-        # the node keeps only the newest unprocessed frame: many are dropped (how many depends on
-        # the machine's load), none crash it
-        assert client.spin_until(lambda: int(_kv(status).get("frames_received", 0)) >= 50, 30), _kv(status)
+            sent += 1
+            time.sleep(0.002)
+            if k % 100 == 99:
+                client.executor.spin_once(timeout_sec=0.01)
+                if k >= 1000 and int(_kv(status).get("frames_bad", 0)) >= 15:
+                    break
         client.spin_until(lambda: False, 1.5)
         kv = _kv(status)
+        assert sent >= 1000
         assert cal.proc.poll() is None, cal.log()  # still up
-        assert int(kv["frames_bad"]) > 20 and int(kv["views_accepted"]) == 0
+        assert int(kv["frames_bad"]) >= 15 and int(kv["views_accepted"]) == 0, kv
         assert any(k.startswith("rejected: bad frame: unsupported encoding") for k in kv)
         assert any(k.startswith("rejected: bad frame: step") or k.startswith("rejected: bad frame: data has")
                    for k in kv)
@@ -109,21 +113,21 @@ def test_corrupt_compressed_frames(tmp_path: Path) -> None:
     client = RosClient(dom)
     try:
         status = _status(client)
-        from rclpy.qos import QoSProfile, ReliabilityPolicy
-
-        pub = client.node.create_publisher(CompressedImage, "/image/compressed",
-                                           QoSProfile(depth=50, reliability=ReliabilityPolicy.BEST_EFFORT))
+        pub = client.node.create_publisher(CompressedImage, "/image/compressed", 50)
         assert client.spin_until(lambda: pub.get_subscription_count() > 0, 20)
-        client.spin_until(lambda: "best-effort QoS" in cal.log(), 10)
         _ok, png = cv2.imencode(".png", np.full((60, 80), 128, np.uint8))
         rng = np.random.default_rng(1)
         import time
 
-        for k in range(300):
+        for k in range(3000):  # until the node has examined enough of them
             m = CompressedImage(format=["jpeg", "png", "rgb8; jpeg compressed bgr8"][k % 3])
             m.data = [b"", png.tobytes()[: int(rng.integers(1, 60))], rng.bytes(500), png.tobytes()][k % 4]
             pub.publish(m)
             time.sleep(0.003)
+            if k % 50 == 49:
+                client.executor.spin_once(timeout_sec=0.01)
+                if int(_kv(status).get("frames_bad", 0)) > 5:
+                    break
         assert client.spin_until(lambda: int(_kv(status).get("frames_bad", 0)) > 5, 30), cal.log()
         kv = _kv(status)
         assert any("cannot decode compressed image" in k or "no data" in k for k in kv)
