@@ -11,7 +11,8 @@ import pytest
 
 from pascal_calib_ros.ros.processes import NodeProcess, RosClient
 
-__all__ = ["NodeProcess", "RosClient", "next_domain_id", "require_netns"]
+__all__ = ["NodeProcess", "RosClient", "camera_info_subscription", "latest_status", "next_domain_id",
+           "require_netns", "status_subscription"]
 
 _domains = itertools.count(random.Random(os.getpid()).randint(1, 60))
 
@@ -33,3 +34,28 @@ require_netns = pytest.mark.skipif(not in_private_netns(),
 def next_domain_id() -> int:
     """A distinct ROS_DOMAIN_ID per test (and per test run: the base depends on the pid)."""
     return 1 + (next(_domains) % 100)
+
+
+def status_subscription(client: RosClient) -> list:
+    """Messages of /pascal_calib/status, appended as they arrive."""
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    msgs: list = []
+    client.node.create_subscription(DiagnosticArray, "/pascal_calib/status", msgs.append, 10)
+    return msgs
+
+
+def latest_status(msgs: list) -> dict[str, str]:
+    """Key-values of the newest status message (empty before the first)."""
+    return {kv.key: kv.value for kv in msgs[-1].status[0].values} if msgs else {}
+
+
+def camera_info_subscription(client: RosClient) -> list:
+    """A reliable, transient-local subscriber of /pascal_calib/camera_info (gets a latched result)."""
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import CameraInfo
+
+    got: list = []
+    qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    client.node.create_subscription(CameraInfo, "/pascal_calib/camera_info", got.append, qos)
+    return got

@@ -11,7 +11,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from ros_harness import NodeProcess, RosClient, next_domain_id, require_netns
+from ros_harness import (
+    NodeProcess,
+    RosClient,
+    camera_info_subscription,
+    latest_status,
+    next_domain_id,
+    require_netns,
+    status_subscription,
+)
 
 from pascal_calib_ros.io.bags import write_image_bag
 from pascal_calib_ros.sim.session import SessionSpec, render_session
@@ -39,26 +47,13 @@ def _check_k(k: list[float] | np.ndarray, truth: dict) -> None:
     assert np.hypot(K[0, 2] - Kt[0, 2], K[1, 2] - Kt[1, 2]) < 1.5, K
 
 
-def _status(client: RosClient) -> list:
-    from diagnostic_msgs.msg import DiagnosticArray
-
-    msgs: list = []
-    client.node.create_subscription(DiagnosticArray, "/pascal_calib/status", msgs.append, 10)
-    return msgs
 
 
-def _latest(msgs: list) -> dict[str, str]:
-    return {kv.key: kv.value for kv in msgs[-1].status[0].values} if msgs else {}
 
 
-def _camera_info_sub(client: RosClient) -> list:
-    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-    from sensor_msgs.msg import CameraInfo
 
-    got: list = []
-    qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    client.node.create_subscription(CameraInfo, "/pascal_calib/camera_info", got.append, qos)
-    return got
+
+
 
 
 def _run_session(tmp_path: Path, source: Path, calib_params: dict, replay_params: dict, truth: dict,
@@ -71,13 +66,13 @@ def _run_session(tmp_path: Path, source: Path, calib_params: dict, replay_params
                                       "exit_when_done": True, **replay_params}, dom, tmp_path / "rep.log")
     client = RosClient(dom)
     try:
-        status = _status(client)
-        assert client.spin_until(lambda: _latest(status).get("ready") == "True", 60), cal.log() + rep.log()
+        status = status_subscription(client)
+        assert client.spin_until(lambda: latest_status(status).get("ready") == "True", 60), cal.log() + rep.log()
         if call:
             resp = client.call_trigger("/pascal_calib/calibrate")
             assert resp.success, resp.message
-        got = _camera_info_sub(client)  # subscribed after the result: transient local delivers it
-        assert client.spin_until(lambda: bool(got), 20), cal.log()
+        got = camera_info_subscription(client)  # subscribed after the result: transient local delivers it
+        assert client.spin_until(lambda: bool(got), 60), cal.log()
         _check_k(got[-1].k, truth)
         assert got[-1].distortion_model == "plumb_bob" and len(got[-1].d) == 5
         assert (tmp_path / "cam.yaml").exists()
@@ -98,16 +93,16 @@ def test_folder_session_calibrate_commit_reset(tmp_path: Path, session: Path) ->
     client = RosClient(dom)
     rep = None
     try:
-        status = _status(client)
-        info = _camera_info_sub(client)
+        status = status_subscription(client)
+        info = camera_info_subscription(client)
         r = client.call_trigger("/pascal_calib/commit")
         assert not r.success and "no calibration to commit" in r.message
         r = client.call_trigger("/pascal_calib/calibrate")
         assert not r.success and "0 view(s) collected; need 6" in r.message
         rep = NodeProcess("replay_node", {"source": str(session), "rate": 8.0, "wait_for_subscribers": 1},
                           dom, tmp_path / "rep.log")
-        assert client.spin_until(lambda: _latest(status).get("ready") == "True", 60), cal.log()
-        st = _latest(status)
+        assert client.spin_until(lambda: latest_status(status).get("ready") == "True", 60), cal.log()
+        st = latest_status(status)
         assert int(st["views_accepted"]) >= 6 and float(st["coverage_skew"]) > 0
         assert not info  # nothing published before a calibration
         r = client.call_trigger("/pascal_calib/calibrate")
@@ -138,10 +133,10 @@ def test_folder_session_calibrate_commit_reset(tmp_path: Path, session: Path) ->
         assert not r.success and "read-only camera" in r.message
         r = client.call_trigger("/pascal_calib/reset")
         assert r.success and "cleared" in r.message
-        assert client.spin_until(lambda: _latest(status).get("views_accepted") == "0", 5)
+        assert client.spin_until(lambda: latest_status(status).get("views_accepted") == "0", 5)
         r = client.call_trigger("/pascal_calib/calibrate")
         assert not r.success  # too few views again, and the last good result stays published
-        late = _camera_info_sub(client)
+        late = camera_info_subscription(client)
         assert client.spin_until(lambda: bool(late), 10)
         assert np.allclose(late[-1].k, info[-1].k)
     finally:

@@ -8,7 +8,15 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from ros_harness import NodeProcess, RosClient, next_domain_id, require_netns
+from ros_harness import (
+    NodeProcess,
+    RosClient,
+    camera_info_subscription,
+    latest_status,
+    next_domain_id,
+    require_netns,
+    status_subscription,
+)
 
 from pascal_calib_ros.geometry.camera import Camera
 from pascal_calib_ros.sim.render import SensorModel, look_at_pose, render_view
@@ -18,26 +26,13 @@ from pascal_calib_ros.targets import resolve_target
 pytestmark = require_netns
 
 
-def _status(client: RosClient) -> list:
-    from diagnostic_msgs.msg import DiagnosticArray
-
-    msgs: list = []
-    client.node.create_subscription(DiagnosticArray, "/pascal_calib/status", msgs.append, 10)
-    return msgs
 
 
-def _kv(msgs: list) -> dict[str, str]:
-    return {kv.key: kv.value for kv in msgs[-1].status[0].values} if msgs else {}
 
 
-def _infos(client: RosClient) -> list:
-    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-    from sensor_msgs.msg import CameraInfo
 
-    got: list = []
-    qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-    client.node.create_subscription(CameraInfo, "/pascal_calib/camera_info", got.append, qos)
-    return got
+
+
 
 
 def _malformed_images(rng: np.random.Generator, n: int) -> list:
@@ -65,8 +60,8 @@ def test_node_survives_a_stream_of_malformed_messages(tmp_path: Path) -> None:
                       dom, tmp_path / "cal.log")
     client = RosClient(dom)
     try:
-        status = _status(client)
-        infos = _infos(client)
+        status = status_subscription(client)
+        infos = camera_info_subscription(client)
         qos = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
         pub = client.node.create_publisher(Image, "/image", qos)
         assert client.spin_until(lambda: pub.get_subscription_count() > 0, 20)
@@ -85,10 +80,10 @@ def test_node_survives_a_stream_of_malformed_messages(tmp_path: Path) -> None:
             time.sleep(0.002)
             if k % 100 == 99:
                 client.executor.spin_once(timeout_sec=0.01)
-                if k >= 1000 and int(_kv(status).get("frames_bad", 0)) >= 15:
+                if k >= 1000 and int(latest_status(status).get("frames_bad", 0)) >= 15:
                     break
         client.spin_until(lambda: False, 1.5)
-        kv = _kv(status)
+        kv = latest_status(status)
         assert sent >= 1000
         assert cal.proc.poll() is None, cal.log()  # still up
         assert int(kv["frames_bad"]) >= 15 and int(kv["views_accepted"]) == 0, kv
@@ -112,7 +107,7 @@ def test_corrupt_compressed_frames(tmp_path: Path) -> None:
     cal = NodeProcess("calibration_node", {"transport": "compressed"}, dom, tmp_path / "cal.log")
     client = RosClient(dom)
     try:
-        status = _status(client)
+        status = status_subscription(client)
         pub = client.node.create_publisher(CompressedImage, "/image/compressed", 50)
         assert client.spin_until(lambda: pub.get_subscription_count() > 0, 20)
         _ok, png = cv2.imencode(".png", np.full((60, 80), 128, np.uint8))
@@ -126,10 +121,10 @@ def test_corrupt_compressed_frames(tmp_path: Path) -> None:
             time.sleep(0.003)
             if k % 50 == 49:
                 client.executor.spin_once(timeout_sec=0.01)
-                if int(_kv(status).get("frames_bad", 0)) > 5:
+                if int(latest_status(status).get("frames_bad", 0)) > 5:
                     break
-        assert client.spin_until(lambda: int(_kv(status).get("frames_bad", 0)) > 5, 30), cal.log()
-        kv = _kv(status)
+        assert client.spin_until(lambda: int(latest_status(status).get("frames_bad", 0)) > 5, 30), cal.log()
+        kv = latest_status(status)
         assert any("cannot decode compressed image" in k or "no data" in k for k in kv)
         assert cal.proc.poll() is None
     finally:
@@ -151,15 +146,15 @@ def _session_then_calibrate(tmp_path: Path, source: Path, params: dict, n_frames
                                       "exit_when_done": True}, dom, tmp_path / "rep.log")
     client = RosClient(dom)
     try:
-        status = _status(client)
-        infos = _infos(client)
-        assert client.spin_until(lambda: int(_kv(status).get("frames_received", 0)) >= n_frames
+        status = status_subscription(client)
+        infos = camera_info_subscription(client)
+        assert client.spin_until(lambda: int(latest_status(status).get("frames_received", 0)) >= n_frames
                                  and rep.proc.poll() is not None, 60), cal.log()
         client.spin_until(lambda: False, 1.0)
         r = client.call_trigger("/pascal_calib/calibrate")
         client.spin_until(lambda: False, 0.5)
         assert not infos or r.success
-        return r, _kv(status)
+        return r, latest_status(status)
     finally:
         client.close()
         rep.stop()
@@ -197,10 +192,10 @@ def test_concurrent_service_calls(tmp_path: Path, second: str) -> None:
                                       "exit_when_done": True}, dom, tmp_path / "rep.log")
     client = RosClient(dom)
     try:
-        status = _status(client)
+        status = status_subscription(client)
         assert client.spin_until(lambda: rep.proc.poll() is not None, 60), rep.log()
         client.spin_until(lambda: False, 1.5)
-        n_views = int(_kv(status)["views_accepted"])
+        n_views = int(latest_status(status)["views_accepted"])
         assert n_views >= 10, cal.log()
         c1 = client.node.create_client(Trigger, "/pascal_calib/calibrate")
         c2 = client.node.create_client(Trigger, f"/pascal_calib/{second}")

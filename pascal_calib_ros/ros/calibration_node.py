@@ -20,11 +20,10 @@ from typing import Any
 
 import cv2
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -430,7 +429,8 @@ class CalibrationNode(Node):
         self.get_logger().info(resp.message)
         return resp
 
-    def shutdown(self) -> None:
+    def stop(self) -> None:
+        """Stop the detector thread (called before the node is destroyed)."""
         self._stop.set()
         with self._pending_cv:
             self._pending_cv.notify_all()
@@ -439,25 +439,10 @@ class CalibrationNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    rclpy.init(args=args)
-    try:
-        node = CalibrationNode()
-    except (ValueError, TargetError) as e:
-        rclpy.logging.get_logger("pascal_calib").fatal(str(e))
-        rclpy.try_shutdown()
-        return 2
-    executor = MultiThreadedExecutor(num_threads=4)
-    executor.add_node(node)
-    try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.shutdown()
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    from .spin import run_node
+
+    return run_node(CalibrationNode, (ValueError, TargetError), "pascal_calib",
+                    lambda: MultiThreadedExecutor(num_threads=4), args)
 
 
 if __name__ == "__main__":
