@@ -17,7 +17,15 @@ import cv2
 import numpy as np
 from scipy.special import ndtr
 
-from ..geometry.conic import ConicFitError, Ellipse, conic_curvature, conic_normals, fit_conic
+from ..geometry.conic import (
+    ConicFitError,
+    Ellipse,
+    conic_curvature,
+    conic_normals,
+    fit_conic,
+    fit_conic_algebraic,
+    sampson_distance,
+)
 
 _INV_SQRT_2PI = 1.0 / np.sqrt(2 * np.pi)
 
@@ -149,8 +157,6 @@ def refine_edge(image: np.ndarray, conic: np.ndarray, spacing: float = 1.0, half
             C_new = fit_conic(edge_pts)
         except ConicFitError as exc:
             raise EdgeError(f"edge points do not form an ellipse: {exc}") from None
-        from ..geometry.conic import sampson_distance
-
         d = sampson_distance(C_new, edge_pts)
         # drop gross outliers (occlusion, clutter touching the edge) and refit once
         mad = 1.4826 * np.median(np.abs(d - np.median(d))) + 1e-3
@@ -198,8 +204,6 @@ def refine_edges_batch(image: np.ndarray, conics: list[np.ndarray], half_windows
     my = (P[:, 1:2] + S * N[:, 1:2]).astype(np.float32)
     prof = cv2.remap(img, mx, my, interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     s0, wid, con, rms = fit_step_profiles(prof, S, iterations=5)
-    from ..geometry.conic import fit_conic_algebraic, sampson_distance
-
     for k in np.unique(own):
         sel = own == k
         c, s_k, w_k, hw = con[sel], s0[sel], wid[sel], S[sel][0, -1]

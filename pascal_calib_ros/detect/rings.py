@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from ..geometry.conic import ConicFitError, Ellipse, fit_conic_algebraic
+from ..geometry.conic import ConicFitError, Ellipse, fit_conic_algebraic, sampson_distance
 from ..targets import Target
 from .edges import EdgeError, EdgeFit, refine_edge
 
@@ -86,8 +86,6 @@ def _ellipse_of(contour: np.ndarray) -> tuple[Ellipse, float] | None:
         return None
     if not np.isfinite([e.a, e.b, e.cx, e.cy]).all() or min(e.a, e.b) <= 0:
         return None
-    from ..geometry.conic import sampson_distance
-
     res = float(np.median(np.abs(sampson_distance(C, contour))))
     return e, res
 
@@ -205,7 +203,6 @@ def detect_target(image: np.ndarray, target: Target, params: DetectionParams = D
         except _Reject as r:
             det.reason = str(r)
             return det
-        ring = target.rings[0]
         try:
             outer = _edge(work, ring_blob.ellipse, params)
             inner = _edge(work, hole, params)
@@ -223,7 +220,6 @@ def detect_target(image: np.ndarray, target: Target, params: DetectionParams = D
             except (_Reject, EdgeError) as exc:
                 det.reason = f"disc: {exc}"
                 return det
-        _ = ring
     elif target.discs:
         det.reason = "targets without a ring are not supported by the detector yet"
         return det
