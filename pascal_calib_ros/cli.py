@@ -20,7 +20,7 @@ from .calibrate.refine import DISTORTION_MODELS
 from .detect.rings import Detection, DetectionParams, detect_target
 from .io.camera_yaml import CameraInfoData, write_camera_yaml
 from .io.images import ImageReadError, expand_image_args, read_grey
-from .targets import TargetError, resolve_target
+from .targets import Target, TargetError, resolve_target
 
 EXIT_OK, EXIT_CALIB, EXIT_INPUT = 0, 1, 2
 
@@ -85,11 +85,18 @@ def format_summary(res: CalibrationResult) -> str:
     return "\n".join(lines)
 
 
-def cmd_calibrate(args: argparse.Namespace) -> int:
+def _target_or_none(name: str) -> Target | None:
+    """The target, or None after printing why it cannot be loaded."""
     try:
-        target = resolve_target(args.target)
+        return resolve_target(name)
     except TargetError as e:
         print(f"error: {e}", file=sys.stderr)
+        return None
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    target = _target_or_none(args.target)
+    if target is None:
         return EXIT_INPUT
     method = args.method or target.default_method()
     if not args.method:
@@ -132,10 +139,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 def cmd_render(args: argparse.Namespace) -> int:
     from .sim.session import SessionSpec, render_session
 
-    try:
-        target = resolve_target(args.target)
-    except TargetError as e:
-        print(f"error: {e}", file=sys.stderr)
+    target = _target_or_none(args.target)
+    if target is None:
         return EXIT_INPUT
     w, h = (int(v) for v in args.size.lower().split("x"))
     spec = SessionSpec(width=w, height=h, focal=args.focal, k1=args.k1, views=args.views, blur=args.blur,

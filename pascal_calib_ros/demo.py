@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from .geometry.camera import Camera, model_error
+from .geometry.camera import Camera, calibration_errors
 from .sim.session import SessionSpec, render_session
 from .targets import resolve_target
 
@@ -26,14 +26,9 @@ OUT = Path("demo_out")
 
 
 def errors_against_truth(truth: dict[str, Any], K: np.ndarray, D: np.ndarray) -> dict[str, float]:
+    """Errors of (K, D) against a rendered session's ground truth (session.json contents)."""
     cam_t = Camera(np.array(truth["K"]), np.array(truth["D"]), truth["width"], truth["height"])
-    return {
-        "fx_err_pct": 100 * (K[0, 0] / cam_t.K[0, 0] - 1),
-        "fy_err_pct": 100 * (K[1, 1] / cam_t.K[1, 1] - 1),
-        "cx_err_px": K[0, 2] - cam_t.K[0, 2],
-        "cy_err_px": K[1, 2] - cam_t.K[1, 2],
-        "model_err_px": model_error(cam_t, Camera(K, D), cam_t.width, cam_t.height),
-    }
+    return calibration_errors(cam_t, K, D)
 
 
 def compare(truth_json: Path, calib_yaml: Path) -> dict[str, float]:

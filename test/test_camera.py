@@ -37,3 +37,17 @@ def test_model_error_is_zero_for_identical_and_positive_otherwise() -> None:
     assert model_error(a, a, 800, 600) < 1e-9
     b = Camera.from_params(800, 800, 401, 300, dist=[-0.2, 0, 0, 0, 0])
     assert 0.9 < model_error(a, b, 800, 600) < 1.1
+
+
+def test_calibration_errors() -> None:
+    from pascal_calib_ros.geometry.camera import calibration_errors
+
+    truth = Camera.from_params(800, 800, 400, 300, width=800, height=600)
+    K = truth.K.copy()
+    K[0, 0] *= 1.001
+    K[0, 2] += 3
+    K[1, 2] -= 4
+    e = calibration_errors(truth, K, np.zeros(5))
+    assert abs(e["fx_err_pct"] - 0.1) < 1e-9 and e["fy_err_pct"] == 0
+    assert e["cx_err_px"] == 3 and e["cy_err_px"] == -4 and abs(e["pp_err_px"] - 5) < 1e-12
+    assert e["model_err_px"] > 0

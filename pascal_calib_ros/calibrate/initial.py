@@ -24,6 +24,7 @@ from ..geometry.circular import (
     vanishing_line_huang,
 )
 from ..geometry.conic import Ellipse, normalize_conic
+from ..geometry.homography import fit_homography
 from ..geometry.iac import IacSolution, iac_from_circular_points
 from ..targets import Target
 
@@ -284,16 +285,6 @@ def pose_from_circles(det: Detection, target: Target, K: np.ndarray, origin: tup
     return PlanePose(R, t)
 
 
-def _homography(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
-    """Normalised DLT homography (plane -> image)."""
-    import cv2
-
-    H, _ = cv2.findHomography(src.astype(np.float64), dst.astype(np.float64), 0)
-    if H is None:
-        raise CircularPointError("no homography from the grid centres")
-    return np.asarray(H, float)
-
-
 def grid_homography_init(dets: list[Detection], target: Target, origin: tuple[float, float], zero_skew: bool
                          ) -> tuple[IacSolution, list[PlanePose | None]]:
     """Approximate start for grid boards (method ``grid``): a homography per view from the
@@ -318,7 +309,7 @@ def grid_homography_init(dets: list[Detection], target: Target, origin: tuple[fl
         if len(src) < 6:
             Hs.append(None)
             continue
-        H = _homography(np.array(src), np.array(dst))
+        H = fit_homography(np.array(src), np.array(dst))
         Hs.append(H)
         pts.append(H[:, 0] + 1j * H[:, 1])
     sol = iac_from_circular_points(pts, dets[0].width, dets[0].height, zero_skew)

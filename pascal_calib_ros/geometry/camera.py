@@ -135,3 +135,16 @@ def model_error(cam_a: Camera, cam_b: Camera, width: int, height: int, step: int
     X = np.concatenate([xn, np.ones((len(xn), 1))], 1)
     uv_b = cam_b.project(X)
     return float(np.sqrt(np.mean(np.sum((uv_b - uv) ** 2, axis=1))))
+
+
+def calibration_errors(truth: Camera, K: np.ndarray, D: np.ndarray) -> dict[str, float]:
+    """Errors of an estimated camera (K, D) against the true one: focal lengths in percent,
+    principal point in pixels, and the model error of :func:`model_error` over the image."""
+    return {
+        "fx_err_pct": 100 * (K[0, 0] / truth.K[0, 0] - 1),
+        "fy_err_pct": 100 * (K[1, 1] / truth.K[1, 1] - 1),
+        "cx_err_px": float(K[0, 2] - truth.K[0, 2]),
+        "cy_err_px": float(K[1, 2] - truth.K[1, 2]),
+        "pp_err_px": float(np.hypot(K[0, 2] - truth.K[0, 2], K[1, 2] - truth.K[1, 2])),
+        "model_err_px": model_error(truth, Camera(K, D, truth.width, truth.height), truth.width, truth.height),
+    }

@@ -41,6 +41,7 @@ from ..geometry.circular import (
     vanishing_line_from_centre,
 )
 from ..geometry.conic import ConicFitError, Ellipse, fit_conic
+from ..geometry.homography import fit_homography
 from ..geometry.iac import DegenerateViewsError, iac_from_circular_points
 from ..targets import Ring, Target, resolve_target
 
@@ -163,23 +164,6 @@ def _k_closed_form(views: list[SimView], method: str, layout: str = "average", s
     return iac_from_circular_points(pts, W, H, zero_skew=False).K
 
 
-def _homography(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
-    """Normalised DLT homography in float64 (plane points -> image points)."""
-    def norm(p: np.ndarray) -> np.ndarray:
-        m, sc = p.mean(0), np.sqrt(2) / np.mean(np.linalg.norm(p - p.mean(0), axis=1))
-        return np.array([[sc, 0, -sc * m[0]], [0, sc, -sc * m[1]], [0, 0, 1]])
-
-    Ts, Td = norm(src), norm(dst)
-    s_ = np.c_[src, np.ones(len(src))] @ Ts.T
-    d_ = np.c_[dst, np.ones(len(dst))] @ Td.T
-    A = []
-    for (x, y, _), (u, v, _) in zip(s_, d_, strict=True):
-        A.append([x, y, 1, 0, 0, 0, -u * x, -u * y, -u])
-        A.append([0, 0, 0, x, y, 1, -v * x, -v * y, -v])
-    Hn = np.linalg.svd(np.array(A))[2][-1].reshape(3, 3)
-    return np.linalg.solve(Td, Hn @ Ts)
-
-
 def _reprojection_rms(K: np.ndarray, Hs: list[np.ndarray], views: list[SimView]) -> float:
     """RMS of the grid reprojection with Zhang's extrinsics from H and K (Zhang 2000, sec. 3.1)."""
     err = []
@@ -196,7 +180,7 @@ def _k_zhang(views: list[SimView]) -> np.ndarray:
     """Zhang's method: homographies (float64 DLT) -> i' = h1 + i h2 -> w -> K, then OpenCV's
     maximum-likelihood refinement; the refinement is kept only if it lowers the reprojection
     error (OpenCV works in float32, which limits it to ~1e-5 px on noise-free data)."""
-    Hs = [_homography(GRID, v.grid) for v in views]
+    Hs = [fit_homography(GRID, v.grid) for v in views]
     K_cf = iac_from_circular_points([Hm[:, 0] + 1j * Hm[:, 1] for Hm in Hs], W, H, zero_skew=False).K
     obj = np.c_[GRID, np.zeros(len(GRID))].astype(np.float32)
     img = [v.grid.astype(np.float32).reshape(-1, 1, 2) for v in views]

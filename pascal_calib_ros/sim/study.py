@@ -19,7 +19,7 @@ import numpy as np
 
 from ..calibrate.pipeline import CalibrationError, CalibrationOptions, calibrate
 from ..detect.rings import DetectionParams, detect_target
-from ..geometry.camera import Camera, model_error
+from ..geometry.camera import Camera, calibration_errors
 from ..targets import resolve_target
 from .render import render_view
 from .session import SessionSpec, session_views
@@ -41,13 +41,9 @@ SCENARIOS = (
 
 
 def _errors(truth: Camera, K: np.ndarray, D: np.ndarray) -> dict[str, float]:
-    est = Camera(K, D, truth.width, truth.height)
-    return {
-        "fx_err_pct": 100 * (K[0, 0] / truth.K[0, 0] - 1),
-        "fy_err_pct": 100 * (K[1, 1] / truth.K[1, 1] - 1),
-        "pp_err_px": float(np.hypot(K[0, 2] - truth.K[0, 2], K[1, 2] - truth.K[1, 2])),
-        "model_err_px": model_error(truth, est, truth.width, truth.height),
-    }
+    """The study tables' columns of :func:`calibration_errors`."""
+    e = calibration_errors(truth, K, D)
+    return {k: e[k] for k in ("fx_err_pct", "fy_err_pct", "pp_err_px", "model_err_px")}
 
 
 def _render_pair(spec: SessionSpec, seed: int) -> tuple[Camera, list[np.ndarray], list[np.ndarray]]:
