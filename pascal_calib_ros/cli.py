@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from .calibrate.pipeline import METHODS, CalibrationError, CalibrationOptions, CalibrationResult, calibrate
-from .calibrate.refine import DISTORTION_MODELS
+from .calibrate.refine import DISTORTION_MODELS, SHAPE_CHOICES
 from .detect.rings import Detection, DetectionParams, detect_target
 from .io.camera_yaml import CameraInfoData, write_camera_yaml
 from .io.images import ImageReadError, expand_image_args, read_grey
@@ -81,6 +81,18 @@ def format_summary(res: CalibrationResult) -> str:
         f"cx = {pm('cx', K[0, 2])}   cy = {pm('cy', K[1, 2])}   skew = {K[0, 1]:.4f}",
         "D (k1 k2 p1 p2 k3) = " + "  ".join(pm(n, v) for n, v in zip(("k1", "k2", "p1", "p2", "k3"), D, strict=True)),
     ]
+    if res.shape:
+        desc = {"pitch_ratio": ("y/x pitch ratio - 1", 100, "%"), "warp_x": ("warp along x", 1000, "mm"),
+                "warp_y": ("warp along y", 1000, "mm")}
+        parts = []
+        for n, value in res.shape.items():
+            if n in res.shape_std:
+                label, scale, unit = desc[n]
+                parts.append(f"{label} {scale * value:+.4f} +- {scale * res.shape_std[n]:.4f} {unit}")
+        lines.append("target shape: " + "; ".join(parts))
+        lines.append("  against a flat nominal sheet: " + "  ".join(
+            f"{k} {res.shape_effect[k]:+.3f}" for k in ("fx", "fy", "cx", "cy"))
+            + f"  (edge RMS {res.shape_effect['rms_flat']:.4f} -> {res.rms:.4f} px)")
     lines += [f"warning: {w}" for w in res.warnings]
     return "\n".join(lines)
 
@@ -111,7 +123,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     t_detect = time.perf_counter() - t0
     opts = CalibrationOptions(method=method, refine=not args.no_refine, distortion=args.distortion,
                               zero_skew=not args.skew, edge_offsets=not args.no_edge_offset,
-                              min_views=args.min_views)
+                              min_views=args.min_views, target_shape=SHAPE_CHOICES[args.target_shape or ""])
     t1 = time.perf_counter()
     try:
         res = calibrate(dets, target, opts)
@@ -145,7 +157,9 @@ def cmd_render(args: argparse.Namespace) -> int:
     w, h = (int(v) for v in args.size.lower().split("x"))
     spec = SessionSpec(width=w, height=h, focal=args.focal, k1=args.k1, views=args.views, blur=args.blur,
                        gamma=args.gamma, noise=args.noise, jpeg=args.jpeg, seed=args.seed,
-                       cut_views=args.cut_views, empty_views=args.empty_views, defocused_views=args.defocused_views)
+                       cut_views=args.cut_views, empty_views=args.empty_views, defocused_views=args.defocused_views,
+                       size_range=(args.min_size, args.max_size), pitch_ratio=args.pitch_ratio,
+                       warp_x=args.warp_x / 1000, warp_y=args.warp_y / 1000)
     paths = render_session(target, spec, Path(args.out), progress=sys.stderr.isatty())
     print(f"wrote {len(paths)} images and ground truth to {args.out}")
     return EXIT_OK
@@ -230,6 +244,9 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--gamma", type=float, default=1.0, help="linearise with this display gamma before edges")
     c.add_argument("--max-blur", type=float, default=4.0, help="reject views whose edges are wider (px)")
     c.add_argument("--min-views", type=int, default=3)
+    c.add_argument("--target-shape", nargs="?", const="warp", choices=[k for k in SHAPE_CHOICES if k],
+                   help="also estimate the printed sheet's shape (grids, checkerboards): warp (parabolic "
+                        "out-of-plane bend; the default), pitch (y/x scale ratio) or all")
     c.add_argument("--report", metavar="DIR", help="write report.png and report.json into DIR")
     c.add_argument("images", nargs="+", help="image files or folders")
     c.set_defaults(func=cmd_calibrate)
@@ -249,6 +266,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--cut-views", type=int, default=0, help="extra views with the target cut by the frame")
     r.add_argument("--empty-views", type=int, default=0, help="extra views without any target")
     r.add_argument("--defocused-views", type=int, default=0, help="extra strongly defocused views")
+    r.add_argument("--min-size", type=float, default=0.3, help="smallest target extent, fraction of the width")
+    r.add_argument("--max-size", type=float, default=0.6, help="largest target extent, fraction of the width")
+    r.add_argument("--pitch-ratio", type=float, default=0.0, help="print the sheet's y this much longer (0.003)")
+    r.add_argument("--warp-x", type=float, default=0.0, help="bend the sheet along x by this many mm")
+    r.add_argument("--warp-y", type=float, default=0.0, help="bend the sheet along y by this many mm")
     r.set_defaults(func=cmd_render)
 
     g = sub.add_parser("bag", help="write a folder of images into a rosbag2 bag (record once, calibrate later)")
@@ -283,7 +305,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.set_defaults(func=cmd_experiment)
 
     s = sub.add_parser("study", help="accuracy studies against ground truth (see README)")
-    s.add_argument("name", choices=["accuracy", "edge-bias", "grids"])
+    s.add_argument("name", choices=["accuracy", "edge-bias", "grids", "target-shape"])
     s.add_argument("--out", default="out/study")
     s.add_argument("--views", type=int, default=15)
     s.add_argument("--seed", type=int, default=1)

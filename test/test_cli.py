@@ -78,3 +78,24 @@ def test_bench_json_shape() -> None:
     assert [d["size"] for d in data["detect"]] == ["800x600", "1920x1080", "2456x2058", "1024x768 grid of 70 discs"]
     assert all(d["detect_ms"] > 0 and d["canny_ms"] > 0 for d in data["detect"])
     assert [c["views"] for c in data["calibrate"]] == [3, 10, 20, 20]
+
+
+def test_target_shape_of_a_bent_sheet(tmp_path: Path) -> None:
+    """A ring grid printed on a sheet bent by 1.5 mm: --target-shape finds the bend and says it
+    matters; without it the edge RMS is higher."""
+    imgs = tmp_path / "imgs"
+    r = run("render", "--target", "ring_grid_a4", "--out", str(imgs), "--size", "800x600", "--focal", "600",
+            "--views", "10", "--min-size", "0.5", "--max-size", "0.8", "--warp-x", "1.5", "--seed", "2")
+    assert r.returncode == 0, r.stderr
+    shaped = run("calibrate", "--target", "ring_grid_a4", "--target-shape", "-o", str(tmp_path / "a.yaml"), str(imgs))
+    assert shaped.returncode == 0, shaped.stderr
+    line = next(ln for ln in shaped.stdout.splitlines() if ln.startswith("target shape:"))
+    warp_x = float(line.split("warp along x")[1].split()[0])
+    assert abs(warp_x - 1.5) < 0.1, line
+    assert "target shape matters" in shaped.stdout
+    flat = run("calibrate", "--target", "ring_grid_a4", "-o", str(tmp_path / "b.yaml"), str(imgs))
+    rms = [float(next(ln for ln in out.stdout.splitlines() if ln.startswith("RMS:")).split()[1])
+           for out in (shaped, flat)]
+    assert rms[0] < 0.7 * rms[1], rms
+    ring = run("calibrate", "--target", "ring_a4", "--target-shape", "-o", str(tmp_path / "c.yaml"), str(imgs))
+    assert ring.returncode != 0 and "cannot be estimated" in ring.stderr

@@ -186,8 +186,9 @@ def test_concurrent_service_calls(tmp_path: Path, second: str) -> None:
     spec = SessionSpec(width=800, height=600, views=25, seed=12, size_range=(0.25, 0.5))
     render_session(resolve_target("ring_a4"), spec, tmp_path / "imgs")
     dom = next_domain_id()
-    cal = NodeProcess("calibration_node", {"min_views": 3, "min_view_distance": 0.0, "max_views": 40},
-                      dom, tmp_path / "cal.log")
+    # writing the report (output_dir) keeps the first call busy for a second or more
+    cal = NodeProcess("calibration_node", {"min_views": 3, "min_view_distance": 0.0, "max_views": 40,
+                                           "output_dir": str(tmp_path / "out")}, dom, tmp_path / "cal.log")
     rep = NodeProcess("replay_node", {"source": str(tmp_path / "imgs"), "rate": 8.0, "wait_for_subscribers": 1,
                                       "exit_when_done": True}, dom, tmp_path / "rep.log")
     client = RosClient(dom)
@@ -201,7 +202,7 @@ def test_concurrent_service_calls(tmp_path: Path, second: str) -> None:
         c2 = client.node.create_client(Trigger, f"/pascal_calib/{second}")
         assert client.spin_until(lambda: c1.service_is_ready() and c2.service_is_ready(), 20)
         f1 = c1.call_async(Trigger.Request())
-        client.spin_until(lambda: False, 0.1)  # the first call is running (it takes ~0.5 s) ...
+        client.spin_until(lambda: False, 0.1)  # the first call is running ...
         f2 = c2.call_async(Trigger.Request())  # ... when the second arrives
         assert client.spin_until(lambda: f1.done() and f2.done(), 60)
         r1, r2 = f1.result(), f2.result()

@@ -23,7 +23,15 @@ from .initial import (
     pose_to_params,
 )
 from .plumbline import division_parameter, plumb_bob_from_division, undistort_detections
-from .refine import DISTORTION_MODELS, INTRINSIC_NAMES, RefineResult, ViewData, refine
+from .refine import (
+    DISTORTION_MODELS,
+    INTRINSIC_NAMES,
+    SHAPE_NAMES,
+    RefineResult,
+    ViewData,
+    refine,
+    shape_frame_of,
+)
 from .zhang import calibrate_zhang
 
 METHODS = (*CIRCLE_METHODS, "grid", "zhang")
@@ -46,6 +54,9 @@ class CalibrationOptions:
     max_points_per_view: int = 700  # grids: spread over all edges (speed of the refinement)
     outlier_factor: float = 4.0  # drop a view whose RMS exceeds this times the median
     min_views: int = MIN_VIEWS
+    # estimate the printed sheet's shape (refine.SHAPE_NAMES: y/x pitch ratio, parabolic warp);
+    # targets with circles spread over the sheet (grids) or a checkerboard only
+    target_shape: tuple[str, ...] = ()
 
 
 @dataclass
@@ -77,6 +88,12 @@ class CalibrationResult:
     # residuals (px, positive outwards), for reports
     edge_points: list[np.ndarray] = field(default_factory=list)
     edge_residuals: list[np.ndarray] = field(default_factory=list)
+    # estimated target shape (empty unless asked for): value, standard deviation, and how much
+    # each intrinsic moved against a fit that assumes the nominal flat sheet (fx, fy, cx, cy, the
+    # flat fit's rms_flat and, with the pitch ratio, its pitch_aspect_correlation with fy/fx)
+    shape: dict[str, float] = field(default_factory=dict)
+    shape_std: dict[str, float] = field(default_factory=dict)
+    shape_effect: dict[str, float] = field(default_factory=dict)
 
     @property
     def n_used(self) -> int:
@@ -126,6 +143,15 @@ def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions
     if opt.distortion not in DISTORTION_MODELS:
         raise CalibrationError(f"unknown distortion model {opt.distortion!r}; choose one of "
                                f"{', '.join(DISTORTION_MODELS)}")
+    unknown = [n for n in opt.target_shape if n not in SHAPE_NAMES]
+    if unknown:
+        raise CalibrationError(f"unknown target shape parameter(s) {unknown}; choose from {', '.join(SHAPE_NAMES)}")
+    if opt.target_shape and not (target.grids or target.checkerboards):
+        raise CalibrationError(f"the shape of target {target.name!r} cannot be estimated: it needs features spread "
+                               "over the sheet (a ring or disc grid, or a checkerboard)")
+    if opt.target_shape and (opt.method == "zhang" or not opt.refine):
+        raise CalibrationError("the target shape is estimated by the refinement of the circle methods; "
+                               "drop --target-shape or use the target's default method with refinement")
     if not dets:
         raise CalibrationError("no views given")
     sizes = {(d.width, d.height) for d in dets}
@@ -208,6 +234,21 @@ def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions
         idx = [idx[i] for i in keep]
         res = refine(views, res.K, res.D, [res.poses[i] for i in keep], dof, opt.distortion, opt.zero_skew,
                      opt.edge_offsets)
+    shape: dict[str, float] = {}
+    shape_std: dict[str, float] = {}
+    shape_effect: dict[str, float] = {}
+    if opt.target_shape:
+        frame = target_shape_frame(target, origin)
+        flat = res
+        res = refine(views, flat.K, flat.D, flat.poses, dof, opt.distortion, opt.zero_skew, opt.edge_offsets,
+                     shape=opt.target_shape, shape_frame=frame)
+        shape, shape_std = res.shape, res.shape_std
+        shape_effect = {"fx": res.K[0, 0] - flat.K[0, 0], "fy": res.K[1, 1] - flat.K[1, 1],
+                        "cx": res.K[0, 2] - flat.K[0, 2], "cy": res.K[1, 2] - flat.K[1, 2],
+                        "rms_flat": flat.rms}
+        if "pitch_ratio" in shape_std:
+            shape_effect["pitch_aspect_correlation"] = res.pitch_aspect_correlation
+        warnings += _shape_warnings(shape, shape_std, shape_effect, res)
     if not np.all(np.isfinite(res.K)) or res.K[0, 0] <= 0 or res.K[1, 1] <= 0:
         raise CalibrationError("refinement diverged; check the target file matches the printed target")
     for j, k in enumerate(idx):
@@ -217,7 +258,39 @@ def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions
     _check_result(res, w, h, warnings)
     return CalibrationResult(res.K, res.D, w, h, opt.method, res.rms, res.std, sol.degeneracy_ratio, reports,
                              warnings, sol.K, True, opt.distortion, res.poses, [v.points for v in views],
-                             res.residuals)
+                             res.residuals, shape, shape_std, shape_effect)
+
+
+def target_shape_frame(target: Target, origin: tuple[float, float]) -> tuple[float, float, float, float]:
+    """Frame of the warp (refine.shape_frame_of) over all circle centres and checkerboard corners
+    of the target, in the refinement's local frame (origin at the first circle centre)."""
+    pts = [np.array([c.center for c in target.circles])]
+    if target.checkerboard is not None:
+        pts.append(target.checkerboard.corner_points())
+    return shape_frame_of(np.concatenate(pts) - np.array(origin))
+
+
+def _shape_warnings(shape: dict[str, float], std: dict[str, float], effect: dict[str, float],
+                    res: RefineResult) -> list[str]:
+    """Say when the estimated shape matters: significant (> 3 sigma) and moving an intrinsic by
+    more than its own standard deviation."""
+    out = []
+    if "pitch_ratio" in std and abs(res.pitch_aspect_correlation) > 0.9:
+        out.append(f"the pitch ratio and fy/fx are {abs(res.pitch_aspect_correlation):.2f} correlated: these views "
+                   "cannot tell a print scaled in y from non-square pixels; tilt the target more about both axes, or "
+                   "measure the print and estimate the warp only")
+    significant = [n for n in shape if n in std and abs(shape[n]) > 3 * std[n]]
+    moved = [k for k in ("fx", "fy", "cx", "cy") if abs(effect[k]) > max(res.std.get(k, 0.0), 1e-9)]
+    if not significant or not moved:
+        return out
+    what = []
+    if "pitch_ratio" in significant:
+        what.append(f"y printed {100 * shape['pitch_ratio']:+.3f} % against x")
+    warps = [f"{n} {1000 * shape[n]:+.2f} mm" for n in ("warp_x", "warp_y") if n in significant]
+    if warps:
+        what.append("sheet not flat (" + ", ".join(warps) + ")")
+    moves = ", ".join(f"{k} {effect[k]:+.2f} px" for k in moved)
+    return [*out, f"target shape matters: {'; '.join(what)}; against a flat, true-to-scale sheet it moves {moves}"]
 
 
 def _check_result(res: RefineResult, w: int, h: int, warnings: list[str]) -> None:

@@ -47,23 +47,38 @@ def _undistort(p: np.ndarray, lam: float, centre: np.ndarray) -> np.ndarray:
     return centre + d / (1.0 + lam * np.sum(d * d, axis=-1, keepdims=True))
 
 
-def _straightness(lines: list[np.ndarray], lam: float, centre: np.ndarray) -> float:
-    cost = 0.0
-    for pts in lines:
-        q = _undistort(pts, lam, centre)
-        q = q - q.mean(0)
-        cost += float(np.linalg.svd(q, compute_uv=False)[-1] ** 2)
-    return cost
+class _Lines:
+    """All rows and columns of all views, flattened for a vectorised straightness measure."""
+
+    def __init__(self, lines: list[np.ndarray]):
+        self.pts = np.concatenate(lines)
+        self.idx = np.concatenate([np.full(len(ln), i) for i, ln in enumerate(lines)])
+        self.count = np.bincount(self.idx).astype(float)
+
+
+def _straightness(lines: _Lines, lam: float, centre: np.ndarray) -> float:
+    """Sum over lines of the smallest eigenvalue of the scatter matrix of the undistorted points
+    (the squared residual of the total-least-squares line)."""
+    q = _undistort(lines.pts, lam, centre)
+    n = len(lines.count)
+    mean = np.stack([np.bincount(lines.idx, q[:, k], n) for k in (0, 1)], 1) / lines.count[:, None]
+    d = q - mean[lines.idx]
+    a = np.bincount(lines.idx, d[:, 0] * d[:, 0], n)
+    b = np.bincount(lines.idx, d[:, 0] * d[:, 1], n)
+    c = np.bincount(lines.idx, d[:, 1] * d[:, 1], n)
+    smallest = (a + c) / 2 - np.sqrt(((a - c) / 2) ** 2 + b * b)
+    return float(np.sum(np.maximum(smallest, 0.0)))
 
 
 def division_parameter(dets: list[Detection], target: Target) -> float:
     """lambda (1/px^2) of the division model that makes the grid lines straightest."""
     w, h = dets[0].width, dets[0].height
     centre = np.array([w / 2, h / 2])
-    lines = [ln for d in dets for ln in _lines_of_centres(d, target)]
-    if not lines:
+    line_list = [ln for d in dets for ln in _lines_of_centres(d, target)]
+    if not line_list:
         return 0.0
-    r2 = max(float(np.max(np.sum((ln - centre) ** 2, axis=1))) for ln in lines)
+    lines = _Lines(line_list)
+    r2 = float(np.max(np.sum((lines.pts - centre) ** 2, axis=1)))
     lo, hi = -0.9 / r2, 0.5 / r2  # the model must stay invertible over the measured points
     g = (np.sqrt(5) - 1) / 2
     a, b = hi - g * (hi - lo), lo + g * (hi - lo)

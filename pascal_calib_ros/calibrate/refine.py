@@ -1,32 +1,45 @@
-"""Joint nonlinear refinement of intrinsics, plumb_bob distortion, poses and edge offsets.
+"""Joint nonlinear refinement of intrinsics, plumb_bob distortion, poses, edge offsets and,
+optionally, the printed target's shape.
 
 Minimises, with a robust (soft L1) loss, the geometric distance of every subpixel edge point to
 the image of its circle, plus the reprojection error of checkerboard corners if any:
 
-- an edge point u is undistorted, its ray is intersected with the view's target plane, the plane
-  point's direction from the circle centre gives the nearest circle point Q (in the plane); Q and
-  two neighbours (along the tangent and the radius) are projected; the residual is the distance of
-  u from the tangent line at q = proj(Q), signed positive on the circle's outer side;
+- an edge point u is undistorted, its ray is intersected with the plane of its circle, the plane
+  point's direction from the circle centre gives the nearest circle point Q (in the plane); the
+  residual is the distance of u from the tangent line of the imaged circle at q = proj(Q), signed
+  positive on the circle's outer side;
 - each view has an edge offset delta (pixels): a dark-inside edge (ring outer, disc) is expected
   at +delta, a dark-outside edge (ring inner) at -delta. Blur seen through a display gamma moves
   the two ring edges in opposite directions by the same amount, so delta is observable and
-  absorbs the bias (PAPER.md: 0.02 px of bias moves f by ~0.7 %).
+  absorbs the bias (PAPER.md: 0.02 px of bias moves f by ~0.7 %);
+- the target shape (optional, all views share it, as mrcal does for chessboards): the sheet's
+  y axis printed at (1 + pitch_ratio) times its nominal scale, and a parabolic out-of-plane warp
+  z(x, y) = warp_x (1 - ux^2) + warp_y (1 - uy^2) metres, ux and uy running from -1 to 1 across
+  the circles' extent; each circle is moved along the board normal by z at its centre (a circle
+  is small against the warp's curvature, so it stays flat).
 
 Poses have 6 dof (rvec, t) or 5 for a target with a single circle centre (rotation about the
-ring's axis unobservable). Solved by Levenberg-Marquardt with IRLS weights; Jacobians by forward
-differences grouped by the block structure (intrinsics x all rows, each view's parameters x its
-rows only).
+ring's axis unobservable). Solved by Levenberg-Marquardt with IRLS weights. The Jacobian is
+analytic: at the foot point the residual is r = n . (u - q) with n the unit normal of the imaged
+circle, and d r / d theta = -n . dq/d theta (Q slides along the circle, which moves q along the
+tangent only, and dn is perpendicular to n while u - q is parallel to it), with dq/d theta the
+ordinary projection Jacobian (:func:`project_with_jacobians`). The normal equations are
+assembled view by view (each view's parameters touch its rows only).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 
-from ..geometry.camera import distort, normalized_to_pixels, pixels_to_normalized, undistort
+from ..geometry.camera import pixels_to_normalized, project_with_jacobians, undistort
 
 INTRINSIC_NAMES = ("fx", "fy", "cx", "cy", "skew", "k1", "k2", "p1", "p2", "k3")
+SHAPE_NAMES = ("pitch_ratio", "warp_x", "warp_y")
+# what a user asks for -> the shape parameters estimated
+SHAPE_CHOICES = {"": (), "warp": ("warp_x", "warp_y"), "pitch": ("pitch_ratio",), "all": SHAPE_NAMES}
 
 DISTORTION_MODELS = {
     "plumb_bob": ("k1", "k2", "p1", "p2", "k3"),
@@ -64,38 +77,45 @@ class RefineResult:
     nfev: int
     success: bool
     message: str
+    shape: dict[str, float] = field(default_factory=dict)  # SHAPE_NAMES -> value (0 when fixed)
+    shape_std: dict[str, float] = field(default_factory=dict)  # estimated shape parameters only
+    # correlation of the estimated pitch ratio with the aspect ratio fy / fx (a mis-scaled print and non-square pixels
+    # look alike unless views are tilted strongly about both axes)
+    pitch_aspect_correlation: float = 0.0
 
 
-def _rotations(rv: np.ndarray) -> np.ndarray:
-    """Vectorised Rodrigues: (V, 3) -> (V, 3, 3)."""
-    th = np.linalg.norm(rv, axis=1)
-    small = th < 1e-12
-    k = rv / np.where(small, 1.0, th)[:, None]
-    kx = np.zeros((len(rv), 3, 3))
-    kx[:, 0, 1], kx[:, 0, 2] = -k[:, 2], k[:, 1]
-    kx[:, 1, 0], kx[:, 1, 2] = k[:, 2], -k[:, 0]
-    kx[:, 2, 0], kx[:, 2, 1] = -k[:, 1], k[:, 0]
-    s, c = np.sin(th)[:, None, None], np.cos(th)[:, None, None]
-    R = np.eye(3)[None] + s * kx + (1 - c) * (kx @ kx)
-    if np.any(small):
-        r = rv[small]
-        sk = np.zeros((len(r), 3, 3))
-        sk[:, 0, 1], sk[:, 0, 2] = -r[:, 2], r[:, 1]
-        sk[:, 1, 0], sk[:, 1, 2] = r[:, 2], -r[:, 0]
-        sk[:, 2, 0], sk[:, 2, 1] = -r[:, 1], r[:, 0]
-        R[small] = np.eye(3)[None] + sk
-    return R
+def rotations_with_jacobians(rvecs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rodrigues for each row of (V, 3): R (V, 3, 3) and dR/drvec (V, 3, 3, 3) indexed [v, k, i, j]."""
+    R = np.empty((len(rvecs), 3, 3))
+    dR = np.empty((len(rvecs), 3, 3, 3))
+    for i, rv in enumerate(rvecs):
+        Ri, jac = cv2.Rodrigues(np.ascontiguousarray(rv, dtype=np.float64).reshape(3, 1))
+        R[i] = Ri
+        dR[i] = jac.reshape(3, 3, 3)
+    return R, dR
+
+
+def shape_frame_of(points: np.ndarray) -> tuple[float, float, float, float]:
+    """(x mid, y mid, x half-width, y half-width) of a point set: the frame of the warp."""
+    lo, hi = points.min(0), points.max(0)
+    half = np.maximum((hi - lo) / 2, 1e-3)
+    return float((lo[0] + hi[0]) / 2), float((lo[1] + hi[1]) / 2), float(half[0]), float(half[1])
 
 
 class Problem:
-    """Parameter layout and residuals of one refinement."""
+    """Parameter layout, residuals and Jacobian of one refinement.
+
+    x = [free intrinsics, estimated shape parameters, view 0 (pose, offset), view 1, ...]."""
 
     def __init__(self, views: list[ViewData], dof: int, free_intrinsics: tuple[str, ...], use_offsets: bool,
-                 loss_scale: float = 0.3):
+                 loss_scale: float = 0.3, shape: tuple[str, ...] = (),
+                 shape_frame: tuple[float, float, float, float] | None = None):
         self.views = views
         self.dof = dof
         self.use_offsets = use_offsets
         self.free = [INTRINSIC_NAMES.index(n) for n in free_intrinsics]
+        self.shape_idx = [SHAPE_NAMES.index(n) for n in shape]
+        self.ng = len(self.free) + len(self.shape_idx)
         self.nv = len(views)
         self.per_view = dof + (1 if use_offsets else 0)
         self.loss_scale = loss_scale
@@ -109,90 +129,191 @@ class Problem:
         self.view_of_corner = np.concatenate([np.full(len(v.corners), i) for i, v in enumerate(views)])
         self.n_edge = len(self.pts)
         self.n_corner = len(self.corners)
+        self.frame = shape_frame or shape_frame_of(np.concatenate([self.centers, self.corner_obj]))
+        rows = np.concatenate([self.view_of_pt, np.repeat(self.view_of_corner, 2)])
+        self.rows_of_view = [np.flatnonzero(rows == i) for i in range(self.nv)]
 
     # -- parameter packing -------------------------------------------------------------
-    def pack(self, intr: np.ndarray, poses: list[np.ndarray], offsets: np.ndarray) -> np.ndarray:
+    def pack(self, intr: np.ndarray, poses: list[np.ndarray], offsets: np.ndarray,
+             shape: np.ndarray | None = None) -> np.ndarray:
+        shape = np.zeros(len(SHAPE_NAMES)) if shape is None else np.asarray(shape, float)
         per = [np.concatenate([p, [o]]) if self.use_offsets else p for p, o in zip(poses, offsets, strict=True)]
-        return np.concatenate([intr[self.free], *per])
+        return np.concatenate([intr[self.free], shape[self.shape_idx], *per])
 
-    def unpack(self, x: np.ndarray, intr0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def unpack(self, x: np.ndarray, intr0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """-> (all 10 intrinsics, all 3 shape parameters, poses (V, dof), offsets (V,))."""
         intr = intr0.copy()
         nf = len(self.free)
         intr[self.free] = x[:nf]
-        vp = x[nf:].reshape(self.nv, self.per_view)
+        shape = np.zeros(len(SHAPE_NAMES))
+        shape[self.shape_idx] = x[nf:self.ng]
+        vp = x[self.ng:].reshape(self.nv, self.per_view)
         poses = vp[:, : self.dof]
         offsets = vp[:, self.dof] if self.use_offsets else np.zeros(self.nv)
-        return intr, poses, offsets
+        return intr, shape, poses, offsets
 
-    def pose_matrices(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def rotations(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """R (V, 3, 3), dR/d(pose rotation parameters) (V, dof - 3, 3, 3), t (V, 3)."""
         if self.dof == 6:
             rv, t = poses[:, :3], poses[:, 3:6]
         else:
             rv = np.concatenate([poses[:, :2], np.zeros((len(poses), 1))], 1)
             t = poses[:, 2:5]
-        return _rotations(rv), t
+        R, dR = rotations_with_jacobians(rv)
+        return R, dR[:, : self.dof - 3], t
 
-    # -- residuals --------------------------------------------------------------------
-    def residuals(self, x: np.ndarray, intr0: np.ndarray) -> np.ndarray:
-        intr, poses, offsets = self.unpack(x, intr0)
-        K = np.array([[intr[0], intr[4], intr[2]], [0, intr[1], intr[3]], [0, 0, 1.0]])
-        D = intr[5:10]
-        R, t = self.pose_matrices(poses)
-        out = [self.edge_residuals(K, D, R, t, offsets)]
+    def board(self, xy: np.ndarray, shape: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Nominal local points (N, 2) -> printed points (N, 3) = (x, (1 + pitch_ratio) y, z(x, y)),
+        d printed / d shape (N, 3, 3), and the surface slope (dz/dx, dz/dy) (N, 2)."""
+        rho, wx, wy = shape
+        xm, ym, xh, yh = self.frame
+        ux, uy = (xy[:, 0] - xm) / xh, (xy[:, 1] - ym) / yh
+        bx, by = 1 - ux * ux, 1 - uy * uy
+        out = np.stack([xy[:, 0], xy[:, 1] * (1 + rho), wx * bx + wy * by], 1)
+        dP = np.zeros((len(xy), 3, 3))
+        dP[:, 1, 0] = xy[:, 1]
+        dP[:, 2, 1], dP[:, 2, 2] = bx, by
+        slope = np.stack([-2 * wx * ux / xh, -2 * wy * uy / yh], 1)
+        return out, dP, slope
+
+    # -- residuals and Jacobian ------------------------------------------------------------
+    def evaluate(self, x: np.ndarray, intr0: np.ndarray, jac: bool = True
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Residuals f (rows), and if ``jac``: dF/d globals (rows, ng) and dF/d own view block
+        (rows, per_view); rows are the edge points, then x and y of every corner."""
+        intr, shape, poses, offsets = self.unpack(x, intr0)
+        K, D = _camera(intr)
+        R, dR, t = self.rotations(poses)
+        f, Jg, Jv = self._edges(K, D, R, dR, t, shape, offsets, jac)
         if self.n_corner:
-            out.append(self.corner_residuals(K, D, R, t).ravel())
-        r = np.concatenate(out)
-        return np.where(np.isfinite(r), r, 1e3)
+            fc, Jgc, Jvc = self._corners(K, D, R, dR, t, shape, jac)
+            f = np.concatenate([f, fc])
+            if jac:
+                Jg, Jv = np.concatenate([Jg, Jgc]), np.concatenate([Jv, Jvc])
+        bad = ~np.isfinite(f)
+        if bad.any():
+            f = np.where(bad, 1e3, f)
+            if jac:
+                Jg[bad], Jv[bad] = 0.0, 0.0
+        return f, Jg, Jv
 
-    def edge_residuals(self, K: np.ndarray, D: np.ndarray, R: np.ndarray, t: np.ndarray,
-                       offsets: np.ndarray) -> np.ndarray:
+    def residuals(self, x: np.ndarray, intr0: np.ndarray) -> np.ndarray:
+        return self.evaluate(x, intr0, jac=False)[0]
+
+    def _edges(self, K: np.ndarray, D: np.ndarray, R: np.ndarray, dR: np.ndarray, t: np.ndarray,
+               shape: np.ndarray, offsets: np.ndarray, jac: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         vi = self.view_of_pt
         Rv, tv = R[vi], t[vi]
+        ctr = self.board(self.centers, shape)[0]
         xn = undistort(pixels_to_normalized(self.pts, K), D, iterations=6)
-        d = np.concatenate([xn, np.ones((len(xn), 1))], 1)
         n = Rv[:, :, 2]
-        lam = np.sum(n * tv, 1) / np.sum(n * d, 1)
-        X = d * lam[:, None]
+        lam = (np.sum(n * tv, 1) + ctr[:, 2]) / (np.sum(n[:, :2] * xn, 1) + n[:, 2])
+        X = np.concatenate([xn, np.ones((len(xn), 1))], 1) * lam[:, None]
         P = np.einsum("nji,nj->ni", Rv, X - tv)  # R^T (X - t)
-        rel = P[:, :2] - self.centers
+        rel = P[:, :2] - ctr[:, :2]
         rho = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1e-12)
         u = rel / rho[:, None]
-        eps = 1e-3 * self.radii[:, None]
-        Q = self.centers + self.radii[:, None] * u
-        tang = np.stack([-u[:, 1], u[:, 0]], 1)
-        q = self._project_local(K, D, Rv, tv, Q)
-        qt = self._project_local(K, D, Rv, tv, Q + eps * tang)
-        qr = self._project_local(K, D, Rv, tv, Q + eps * u)
-        ti = qt - q
+        r = self.radii[:, None]
+        s1 = 1 + shape[0]
+        for step in range(2):
+            # the circle point at angle u, drawn on the printed sheet (each point at its own z)
+            Q, dPds, slope = self.board(self.centers + r * u, shape)
+            q, dqdX, dqdI = project_with_jacobians(np.einsum("nij,nj->ni", Rv, Q) + tv, K, D)
+            dqdP = np.einsum("nij,njk->nik", dqdX, Rv)  # image motion per board-frame motion
+            tang = np.stack([-u[:, 1], s1 * u[:, 0], slope[:, 0] * -u[:, 1] + slope[:, 1] * u[:, 0]], 1)
+            ti = np.einsum("nij,nj->ni", dqdP, tang)  # image of the circle's tangent (per radian / r)
+            if step:
+                break
+            # slide Q along the circle to the image foot point of u (one Gauss-Newton step on the
+            # angle): the radial point of the plane is not the nearest in a perspective image, and
+            # the Jacobian below is exact only at the foot point
+            dq = ti * r
+            dth = np.sum(dq * (self.pts - q), 1) / np.maximum(np.sum(dq * dq, 1), 1e-30)
+            c, s_ = np.cos(dth), np.sin(dth)
+            u = np.stack([c * u[:, 0] - s_ * u[:, 1], s_ * u[:, 0] + c * u[:, 1]], 1)
+        radial = np.stack([u[:, 0], s1 * u[:, 1], slope[:, 0] * u[:, 0] + slope[:, 1] * u[:, 1]], 1)
+        ri = np.einsum("nij,nj->ni", dqdP, radial)  # image of the outward radius
         ti /= np.maximum(np.hypot(ti[:, 0], ti[:, 1]), 1e-15)[:, None]
-        ri = qr - q
         orient = np.sign(ri[:, 0] * ti[:, 1] - ri[:, 1] * ti[:, 0])
-        a = self.pts - q
-        dist = (a[:, 0] * ti[:, 1] - a[:, 1] * ti[:, 0]) * orient
-        return dist - self.signs * offsets[vi]
-
-    @staticmethod
-    def _project_local(K: np.ndarray, D: np.ndarray, Rv: np.ndarray, tv: np.ndarray, P2: np.ndarray) -> np.ndarray:
-        X = Rv[:, :, 0] * P2[:, 0:1] + Rv[:, :, 1] * P2[:, 1:2] + tv
-        return normalized_to_pixels(distort(X[:, :2] / X[:, 2:3], D), K)
-
-    def corner_residuals(self, K: np.ndarray, D: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
-        vi = self.view_of_corner
-        return self._project_local(K, D, R[vi], t[vi], self.corner_obj) - self.corners
-
-    def view_columns(self) -> tuple[int, np.ndarray, np.ndarray]:
-        """(number of intrinsic columns, per-view column offsets, view of each residual row)."""
+        nrm = np.stack([ti[:, 1], -ti[:, 0]], 1) * orient[:, None]  # outward unit normal in the image
+        f = np.sum(nrm * (self.pts - q), 1) - self.signs * offsets[vi]
+        if not jac:
+            return f, np.zeros((0, self.ng)), np.zeros((0, self.per_view))
+        h = np.einsum("ni,nij->nj", nrm, dqdX)  # n^T dq/dX
+        Jg = np.empty((len(f), self.ng))
         nf = len(self.free)
-        offsets = nf + self.per_view * np.arange(self.nv)
-        rows = np.concatenate([self.view_of_pt, np.repeat(self.view_of_corner, 2)])
-        return nf, offsets, rows
+        Jg[:, :nf] = -np.einsum("ni,nij->nj", nrm, dqdI[:, :, self.free])
+        if self.shape_idx:
+            g = np.einsum("nj,njk->nk", h, Rv)  # n^T dq/dP
+            Jg[:, nf:] = -np.einsum("nk,nks->ns", g, dPds[:, :, self.shape_idx])
+        Jv = np.empty((len(f), self.per_view))
+        Jv[:, : self.dof - 3] = -np.einsum("nj,nkji,ni->nk", h, dR[vi], Q)
+        Jv[:, self.dof - 3: self.dof] = -h
+        if self.use_offsets:
+            Jv[:, self.dof] = -self.signs
+        return f, Jg, Jv
+
+    def _corners(self, K: np.ndarray, D: np.ndarray, R: np.ndarray, dR: np.ndarray, t: np.ndarray,
+                 shape: np.ndarray, jac: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        vi = self.view_of_corner
+        P, dPds, _ = self.board(self.corner_obj, shape)
+        Rv = R[vi]
+        q, dqdX, dqdI = project_with_jacobians(np.einsum("nij,nj->ni", Rv, P) + t[vi], K, D)
+        f = (q - self.corners).ravel()
+        if not jac:
+            return f, np.zeros((0, self.ng)), np.zeros((0, self.per_view))
+        m = len(q)
+        nf = len(self.free)
+        Jg = np.empty((m, 2, self.ng))
+        Jg[:, :, :nf] = dqdI[:, :, self.free]
+        if self.shape_idx:
+            dqdP = np.einsum("nij,njk->nik", dqdX, Rv)
+            Jg[:, :, nf:] = np.einsum("nik,nks->nis", dqdP, dPds[:, :, self.shape_idx])
+        Jv = np.zeros((m, 2, self.per_view))
+        Jv[:, :, : self.dof - 3] = np.einsum("nij,nkjl,nl->nik", dqdX, dR[vi], P)
+        Jv[:, :, self.dof - 3: self.dof] = dqdX
+        return f, Jg.reshape(2 * m, self.ng), Jv.reshape(2 * m, self.per_view)
+
+    def normal_equations(self, f: np.ndarray, Jg: np.ndarray, Jv: np.ndarray, w: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray]:
+        """A = J^T W J and g = J^T W f, assembled from the block structure of J."""
+        ng, pv = self.ng, self.per_view
+        size = ng + pv * self.nv
+        A = np.zeros((size, size))
+        g = np.zeros(size)
+        Jgw = Jg * w[:, None]
+        A[:ng, :ng] = Jg.T @ Jgw
+        g[:ng] = Jgw.T @ f
+        for i, rows in enumerate(self.rows_of_view):
+            s = ng + i * pv
+            Jvi = Jv[rows]
+            Jviw = Jvi * w[rows, None]
+            A[s:s + pv, s:s + pv] = Jvi.T @ Jviw
+            A[:ng, s:s + pv] = Jg[rows].T @ Jviw
+            A[s:s + pv, :ng] = A[:ng, s:s + pv].T
+            g[s:s + pv] = Jviw.T @ f[rows]
+        return A, g
+
+    def dense_jacobian(self, Jg: np.ndarray, Jv: np.ndarray) -> np.ndarray:
+        """The full Jacobian (rows, parameters), for tests and small problems."""
+        J = np.zeros((len(Jg), self.ng + self.per_view * self.nv))
+        J[:, : self.ng] = Jg
+        for i, rows in enumerate(self.rows_of_view):
+            s = self.ng + i * self.per_view
+            J[rows, s:s + self.per_view] = Jv[rows]
+        return J
+
+
+def _camera(intr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    K = np.array([[intr[0], intr[4], intr[2]], [0, intr[1], intr[3]], [0, 0, 1.0]])
+    return K, intr[5:10].copy()
 
 
 @dataclass
 class LMResult:
     x: np.ndarray
     fun: np.ndarray
-    jac: np.ndarray
+    normal_matrix: np.ndarray  # J^T W J at the solution
     weights: np.ndarray
     cost: float
     nfev: int
@@ -201,35 +322,13 @@ class LMResult:
     message: str
 
 
-def _jacobian(fun: object, x: np.ndarray, f0: np.ndarray, prob: Problem, intr0: np.ndarray) -> tuple[np.ndarray, int]:
-    """Forward differences exploiting the block structure: each intrinsic column alone, then each
-    per-view column j perturbed in every view at once (a view's rows depend on its own block)."""
-    nf, offs, rows = prob.view_columns()
-    J = np.zeros((len(f0), len(x)))
-    nfev = 0
-    for j in range(nf):
-        h = 1e-6 * max(abs(x[j]), 1e-2)
-        xp = x.copy()
-        xp[j] += h
-        J[:, j] = (prob.residuals(xp, intr0) - f0) / h
-        nfev += 1
-    for j in range(prob.per_view):
-        cols = offs + j
-        h = 1e-7 * np.maximum(np.abs(x[cols]), 1e-2)
-        xp = x.copy()
-        xp[cols] += h
-        df = prob.residuals(xp, intr0) - f0
-        nfev += 1
-        J[np.arange(len(f0)), cols[rows]] = df / h[rows]
-    return J, nfev
-
-
 def levenberg_marquardt(prob: Problem, x0: np.ndarray, intr0: np.ndarray, loss_scale: float,
                         max_iter: int = 60, tol: float = 1e-10) -> LMResult:
     """Levenberg-Marquardt with iteratively reweighted soft-L1 loss rho(z) = 2 (sqrt(1 + z) - 1),
-    z = (r / f)^2, weights 1 / sqrt(1 + z); dense normal equations (the parameter count is small)."""
+    z = (r / f)^2, weights 1 / sqrt(1 + z); normal equations from :meth:`Problem.normal_equations`
+    (Jacobi-scaled, dense: a few hundred parameters at most)."""
     x = x0.copy()
-    f = prob.residuals(x, intr0)
+    f, Jg, Jv = prob.evaluate(x, intr0)
     nfev = 1
 
     def robust_cost(r: np.ndarray) -> float:
@@ -239,16 +338,10 @@ def levenberg_marquardt(prob: Problem, x0: np.ndarray, intr0: np.ndarray, loss_s
     cost = robust_cost(f)
     lam = 1e-3
     message, success = "maximum iterations reached", False
-    J = np.zeros((len(f), len(x)))
-    w = np.ones(len(f))
     it = 0
     for it in range(1, max_iter + 1):  # noqa: B007 (the count is reported)
-        J, n = _jacobian(prob.residuals, x, f, prob, intr0)
-        nfev += n
         w = 1.0 / np.sqrt(1 + (f / loss_scale) ** 2)
-        Jw = J * w[:, None]
-        A = J.T @ Jw
-        g = Jw.T @ f
+        A, g = prob.normal_equations(f, Jg, Jv, w)
         d = np.sqrt(np.maximum(np.diag(A), 1e-30))
         An = A / d[:, None] / d[None, :]
         gn = g / d
@@ -260,12 +353,12 @@ def levenberg_marquardt(prob: Problem, x0: np.ndarray, intr0: np.ndarray, loss_s
                 lam *= 10
                 continue
             xn = x + step
-            fn = prob.residuals(xn, intr0)
+            fn, Jgn, Jvn = prob.evaluate(xn, intr0)
             nfev += 1
             cn = robust_cost(fn)
             if cn < cost:
                 rel = (cost - cn) / max(cost, 1e-300)
-                x, f, cost = xn, fn, cn
+                x, f, Jg, Jv, cost = xn, fn, Jgn, Jvn, cn
                 lam = max(lam * 0.2, 1e-9)
                 improved = True
                 break
@@ -277,48 +370,71 @@ def levenberg_marquardt(prob: Problem, x0: np.ndarray, intr0: np.ndarray, loss_s
             message, success = "converged", True
             break
     w = 1.0 / np.sqrt(1 + (f / loss_scale) ** 2)
-    return LMResult(x, f, J, w, cost, nfev, it, success, message)
+    A, _ = prob.normal_equations(f, Jg, Jv, w)
+    return LMResult(x, f, A, w, cost, nfev, it, success, message)
 
 
 def refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[np.ndarray], dof: int,
            distortion: str = "plumb_bob", zero_skew: bool = True, use_offsets: bool = True,
-           loss_scale: float = 0.3, max_iter: int = 60) -> RefineResult:
-    """Least squares over K, D, poses and offsets (see the module docstring)."""
+           loss_scale: float = 0.3, max_iter: int = 60, shape: tuple[str, ...] = (),
+           shape_frame: tuple[float, float, float, float] | None = None,
+           shape0: np.ndarray | None = None) -> RefineResult:
+    """Least squares over K, D, poses, offsets and the named shape parameters (module docstring).
+
+    ``shape_frame`` is (x mid, y mid, x half-width, y half-width) of the warp in the local frame
+    (default: the extent of the observed circles); ``shape0`` the starting (or fixed) values of
+    all three :data:`SHAPE_NAMES`."""
     if distortion not in DISTORTION_MODELS:
         raise ValueError(f"unknown distortion model {distortion!r}: {', '.join(DISTORTION_MODELS)}")
+    unknown = [s for s in shape if s not in SHAPE_NAMES]
+    if unknown:
+        raise ValueError(f"unknown target shape parameter(s) {unknown}: choose from {', '.join(SHAPE_NAMES)}")
     free = ("fx", "fy", "cx", "cy") + (() if zero_skew else ("skew",)) + DISTORTION_MODELS[distortion]
-    prob = Problem(views, dof, free, use_offsets, loss_scale)
+    prob = Problem(views, dof, free, use_offsets, loss_scale, tuple(shape), shape_frame)
     intr0 = np.array([K0[0, 0], K0[1, 1], K0[0, 2], K0[1, 2], 0.0 if zero_skew else K0[0, 1], *np.asarray(D0, float)])
     for name in INTRINSIC_NAMES[5:]:
         if name not in free:  # coefficients the model does not estimate are held at zero
             intr0[INTRINSIC_NAMES.index(name)] = 0.0
-    x0 = prob.pack(intr0, poses0, np.zeros(len(views)))
+    x0 = prob.pack(intr0, poses0, np.zeros(len(views)), shape0)
     sol = levenberg_marquardt(prob, x0, intr0, loss_scale, max_iter=max_iter)
-    intr, poses, offsets = prob.unpack(sol.x, intr0)
-    K = np.array([[intr[0], intr[4], intr[2]], [0, intr[1], intr[3]], [0, 0, 1.0]])
-    D = intr[5:10].copy()
-    R, t = prob.pose_matrices(poses)
-    er = prob.edge_residuals(K, D, R, t, offsets)
+    if shape0 is not None:  # fixed shape parameters keep their given values
+        fixed = [i for i in range(len(SHAPE_NAMES)) if i not in prob.shape_idx]
+        intr_, shape_v, poses, offsets = prob.unpack(sol.x, intr0)
+        shape_v[fixed] = np.asarray(shape0, float)[fixed]
+    else:
+        intr_, shape_v, poses, offsets = prob.unpack(sol.x, intr0)
+    K, D = _camera(intr_)
+    R, dR, t = prob.rotations(poses)
+    er = prob._edges(K, D, R, dR, t, shape_v, offsets, jac=False)[0]
     per_view = [er[prob.view_of_pt == i] for i in range(len(views))]
     view_rms = np.array([np.sqrt(np.mean(r * r)) if len(r) else 0.0 for r in per_view])
     corner_rms = np.zeros(len(views))
     if prob.n_corner:
-        cr = prob.corner_residuals(K, D, R, t)
+        cr = prob._corners(K, D, R, dR, t, shape_v, jac=False)[0].reshape(-1, 2)
         for i in range(len(views)):
             sel = prob.view_of_corner == i
             if sel.any():
                 corner_rms[i] = float(np.sqrt(np.mean(np.sum(cr[sel] ** 2, 1))))
-    # standard deviations from the Gauss-Newton covariance s^2 (J^T J)^-1
-    J = sol.jac
+    # standard deviations from the Gauss-Newton covariance s^2 (J^T W J)^-1
     dof_res = max(len(sol.fun) - len(sol.x), 1)
     s2 = float(np.sum(sol.weights * sol.fun**2) / dof_res)
     std: dict[str, float] = {}
+    shape_std: dict[str, float] = {}
+    corr = 0.0
     try:
-        cov = np.linalg.pinv(J.T @ (J * sol.weights[:, None])) * s2
+        cov = np.linalg.pinv(sol.normal_matrix) * s2
         for k, idx in enumerate(prob.free):
             std[INTRINSIC_NAMES[idx]] = float(np.sqrt(max(cov[k, k], 0.0)))
+        for k, idx in enumerate(prob.shape_idx):
+            j = len(prob.free) + k
+            shape_std[SHAPE_NAMES[idx]] = float(np.sqrt(max(cov[j, j], 0.0)))
+            if SHAPE_NAMES[idx] == "pitch_ratio" and {0, 1} <= set(prob.free):
+                g = np.zeros(len(cov))  # d(fy - a fx): the aspect ratio a = fy / fx, linearised
+                g[prob.free.index(1)], g[prob.free.index(0)] = 1.0, -K[1, 1] / K[0, 0]
+                corr = float(cov[j] @ g / np.sqrt(max(cov[j, j] * (g @ cov @ g), 1e-300)))
     except np.linalg.LinAlgError:
         pass
     return RefineResult(K, D, [p.copy() for p in poses], offsets, std, view_rms, corner_rms,
                         float(np.sqrt(np.mean(er * er))), per_view, float(sol.cost), int(sol.nfev),
-                        bool(sol.success), str(sol.message))
+                        bool(sol.success), str(sol.message), dict(zip(SHAPE_NAMES, map(float, shape_v), strict=True)),
+                        shape_std, float(corr))

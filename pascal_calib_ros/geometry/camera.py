@@ -77,6 +77,42 @@ def distort_jacobian(xy: np.ndarray, D: np.ndarray) -> tuple[np.ndarray, ...]:
     return a, b, c, d
 
 
+def project_with_jacobians(X: np.ndarray, K: np.ndarray, D: np.ndarray
+                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Project camera-frame points (N, 3) and differentiate analytically.
+
+    Returns the pixels q (N, 2), dq/dX (N, 2, 3) and dq/d(fx, fy, cx, cy, skew, k1, k2, p1, p2, k3)
+    (N, 2, 10), by the chain rule through x = X/Z, :func:`distort` and K (module docstring).
+    """
+    fx, s, fy = K[0, 0], K[0, 1], K[1, 1]
+    z = X[:, 2]
+    xn = X[:, :2] / z[:, None]
+    xd = distort(xn, D)
+    q = normalized_to_pixels(xd, K)
+    a, b, c, d = distort_jacobian(xn, D)
+    x, y = xn[:, 0], xn[:, 1]
+    # dq/dx (normalised), then dx/dX = [[1/Z, 0, -x/Z], [0, 1/Z, -y/Z]]
+    m00, m01 = fx * a + s * c, fx * b + s * d
+    m10, m11 = fy * c, fy * d
+    iz = 1.0 / z
+    dX = np.empty((len(X), 2, 3))
+    dX[:, 0, 0], dX[:, 0, 1] = m00 * iz, m01 * iz
+    dX[:, 0, 2] = -(m00 * x + m01 * y) * iz
+    dX[:, 1, 0], dX[:, 1, 1] = m10 * iz, m11 * iz
+    dX[:, 1, 2] = -(m10 * x + m11 * y) * iz
+    r2 = x * x + y * y
+    r4 = r2 * r2
+    # d(xd, yd)/d(k1, k2, p1, p2, k3)
+    dxd = np.stack([x * r2, x * r4, 2 * x * y, r2 + 2 * x * x, x * r4 * r2], 1)
+    dyd = np.stack([y * r2, y * r4, r2 + 2 * y * y, 2 * x * y, y * r4 * r2], 1)
+    dI = np.zeros((len(X), 2, 10))
+    dI[:, 0, 0], dI[:, 0, 2], dI[:, 0, 4] = xd[:, 0], 1.0, xd[:, 1]
+    dI[:, 1, 1], dI[:, 1, 3] = xd[:, 1], 1.0
+    dI[:, 0, 5:] = fx * dxd + s * dyd
+    dI[:, 1, 5:] = fy * dyd
+    return q, dX, dI
+
+
 def undistort(xd: np.ndarray, D: np.ndarray, iterations: int = 8) -> np.ndarray:
     """Invert :func:`distort` by Newton's method (vectorised, from x = x_d)."""
     xd = np.asarray(xd, float)

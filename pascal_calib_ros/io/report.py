@@ -51,6 +51,8 @@ def report_numbers(res: CalibrationResult, dets: list[Detection]) -> dict[str, A
                       "max_abs_px": float(max((np.max(np.abs(r)) for r in res.edge_residuals), default=0.0))},
         "coverage": {"image_fraction_inside_some_view": covered},
         "distortion_field": {"max_px": float(mag.max()), "mean_px": float(mag.mean())},
+        "target_shape": {"estimated": {n: res.shape[n] for n in res.shape_std}, "std": res.shape_std,
+                         "change_against_flat_sheet": res.shape_effect} if res.shape else None,
     }
 
 
@@ -116,6 +118,8 @@ def write_report(res: CalibrationResult, dets: list[Detection], out_dir: str | P
     lines = [f"method {res.method}{' + refinement' if res.refined else ''}, {res.n_used}/{len(res.views)} views",
              f"RMS {res.rms:.4f} px, degeneracy ratio {res.degeneracy_ratio:.3f}", ""]
     lines += [f"{n:>3} = {v:12.5f}  +- {res.std.get(n, float('nan')):.5f}" for n, v in zip(names, vals, strict=True)]
+    if res.shape_std:
+        lines += ["target shape: " + ", ".join(f"{n} {res.shape[n]:+.2e}" for n in res.shape_std)]
     lines += [""] + [f"{v.name}: {f'used, rms {v.rms:.3f} px' if v.used else 'rejected: ' + v.reason}"[:70]
                      for v in res.views[:18]]
     lines += [f"warning: {x}"[:80] for x in res.warnings]

@@ -33,7 +33,7 @@ from std_srvs.srv import Trigger
 
 from ..calibrate.collector import ViewCollector
 from ..calibrate.pipeline import METHODS, CalibrationError, CalibrationOptions, CalibrationResult, calibrate
-from ..calibrate.refine import DISTORTION_MODELS
+from ..calibrate.refine import DISTORTION_MODELS, SHAPE_CHOICES
 from ..detect.rings import Detection, detect_target
 from ..io.camera_yaml import CameraInfoData, write_camera_yaml
 from ..io.image_msgs import ImageConversionError, compressed_to_grey, grey_to_image_fields, image_to_grey
@@ -54,7 +54,7 @@ class Param:
 # The one declaration table of the node's parameters.
 PARAMS = (
     Param("target", "ring_a4", "target YAML path or packaged target name (ring_a4, pascal_board_a3, ...)"),
-    Param("method", "", "ring | pt2 | pt1 | huang | zhang; empty: the target's natural method",
+    Param("method", "", "ring | pt2 | pt1 | huang | grid | zhang; empty: the target's natural method",
           choices=("", *METHODS)),
     Param("min_views", 8, "views needed before calibrating (>= 3)", int_range=(3, 1000)),
     Param("max_views", 40, "views kept at most (bounded memory)", int_range=(3, 1000)),
@@ -65,6 +65,9 @@ PARAMS = (
     Param("zero_skew", True, "estimate K with zero skew"),
     Param("distortion_model", "plumb_bob", "plumb_bob | plumb_bob_k3_fixed | radial | none",
           choices=tuple(DISTORTION_MODELS)),
+    Param("target_shape", "", "also estimate the printed sheet's shape (grid and checkerboard targets): "
+          "warp (out-of-plane bend), pitch (y/x scale ratio), all; empty: nominal flat sheet",
+          choices=tuple(SHAPE_CHOICES)),
     Param("auto_calibrate", False, "calibrate as soon as the coverage is complete"),
     Param("qos", "auto", "image subscription reliability: auto (match the publisher) | reliable | best_effort",
           choices=("auto", "reliable", "best_effort")),
@@ -155,7 +158,7 @@ class CalibrationNode(Node):
                 continue
             if p.choices and value not in p.choices:
                 problems.append(f"{name}={value!r} is not one of {', '.join(repr(c) for c in p.choices)}")
-        target_value = values.get("target")
+        target_value = values.get("target", self.p("target") if self.has_parameter("target") else None)
         if target_value is not None:
             try:
                 t = resolve_target(str(target_value))
@@ -164,6 +167,11 @@ class CalibrationNode(Node):
                 if method and method not in t.methods():
                     problems.append(f"method {method!r} does not fit target {t.name} "
                                     f"(supports {', '.join(t.methods())})")
+                shape = values.get("target_shape", self.p("target_shape")
+                                   if self.has_parameter("target_shape") else "")
+                if shape and not (t.grids or t.checkerboards):
+                    problems.append(f"target_shape needs a grid or checkerboard target; {t.name} has "
+                                    "neither")
             except TargetError as e:
                 problems.append(f"target: {e}")
         mn = values.get("min_views", self.p("min_views") if self.has_parameter("min_views") else 3)
@@ -332,7 +340,8 @@ class CalibrationNode(Node):
                 self.get_logger().warn(f"calibration refused: {msg}")
                 return False, msg
             opts = CalibrationOptions(method=self.method, distortion=str(self.p("distortion_model")),
-                                      zero_skew=bool(self.p("zero_skew")), min_views=min(min_views, len(views)))
+                                      zero_skew=bool(self.p("zero_skew")), min_views=min(min_views, len(views)),
+                                      target_shape=SHAPE_CHOICES[str(self.p("target_shape"))])
             t0 = time.perf_counter()
             try:
                 res = calibrate(views, target, opts)
@@ -371,6 +380,7 @@ class CalibrationNode(Node):
         if out_dir:
             summary = {"summary": res.summary_line(), "K": res.K.tolist(), "D": res.D.tolist(), "std": res.std,
                        "rms": res.rms, "degeneracy_ratio": res.degeneracy_ratio, "warnings": res.warnings,
+                       "target_shape": res.shape, "target_shape_std": res.shape_std,
                        "views": [{"name": v.name, "used": v.used, "reason": v.reason, "rms": v.rms}
                                  for v in res.views]}
             Path(out_dir).mkdir(parents=True, exist_ok=True)

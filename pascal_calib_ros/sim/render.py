@@ -46,6 +46,27 @@ class Pose:
 
 
 @dataclass(frozen=True)
+class SheetShape:
+    """How the printed sheet departs from its nominal geometry (the model of calibrate/refine.py):
+    y printed (1 + pitch_ratio) times longer than nominal (about the frame's middle), and the
+    sheet bent out of its plane by z = warp_x (1 - ux^2) + warp_y (1 - uy^2) metres, with ux, uy
+    running from -1 to 1 across ``frame`` = (x mid, y mid, x half-width, y half-width)."""
+
+    pitch_ratio: float = 0.0
+    warp_x: float = 0.0
+    warp_y: float = 0.0
+    frame: tuple[float, float, float, float] = (0.0, 0.0, 1.0, 1.0)
+
+    def z(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        xm, ym, xh, yh = self.frame
+        return self.warp_x * (1 - ((x - xm) / xh) ** 2) + self.warp_y * (1 - ((y - ym) / yh) ** 2)
+
+    def nominal_y(self, y_printed: np.ndarray) -> np.ndarray:
+        ym = self.frame[1]
+        return ym + (y_printed - ym) / (1 + self.pitch_ratio)
+
+
+@dataclass(frozen=True)
 class SensorModel:
     """Image formation after the geometry (all optional)."""
 
@@ -80,8 +101,11 @@ class RenderedView:
         }
 
 
-def plane_coordinates(camera: Camera, pose: Pose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Target-plane (x, y) of every pixel centre, and a mask of pixels that see the plane."""
+def plane_coordinates(camera: Camera, pose: Pose, shape: SheetShape | None = None
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Nominal sheet coordinates (x, y) of every pixel centre, and a mask of pixels that see the
+    sheet. A bent or mis-scaled sheet (``shape``) is intersected by fixed-point iteration: the
+    ray meets the plane at the height z of the sheet point found last (z varies slowly)."""
     h, w = camera.height, camera.width
     us, vs = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
     uv = np.stack([us, vs], -1).reshape(-1, 2)
@@ -89,9 +113,15 @@ def plane_coordinates(camera: Camera, pose: Pose) -> tuple[np.ndarray, np.ndarra
     d = np.concatenate([xn, np.ones((len(xn), 1))], 1)
     n = pose.R[:, 2]
     denom = d @ n
-    lam = np.where(np.abs(denom) > 1e-12, (n @ pose.t) / np.where(denom == 0, 1, denom), -1.0)
-    X = d * lam[:, None]
-    P = (X - pose.t) @ pose.R  # R^T (X - t)
+    safe = np.where(np.abs(denom) > 1e-12, denom, 1.0)
+    z = np.zeros(len(d))
+    for _ in range(8 if shape is not None else 1):
+        lam = np.where(np.abs(denom) > 1e-12, (n @ pose.t + z) / safe, -1.0)
+        X = d * lam[:, None]
+        P = (X - pose.t) @ pose.R  # R^T (X - t)
+        if shape is not None:
+            P[:, 1] = shape.nominal_y(P[:, 1])
+            z = shape.z(P[:, 0], P[:, 1])
     valid = (lam > 0).reshape(h, w)
     # the inverse map is only trustworthy where distortion is monotonic: check by reprojection
     back = camera.project(X[lam > 0]) if np.any(lam > 0) else np.zeros((0, 2))
@@ -183,13 +213,15 @@ def apply_sensor(radiance: np.ndarray, sensor: SensorModel, rng: np.random.Gener
     return out
 
 
-def render_view(target: Target, camera: Camera, pose: Pose | None, sensor: SensorModel = SensorModel()) -> RenderedView:
-    """Render one grey image of the target at ``pose`` (None: a view without any target)."""
+def render_view(target: Target, camera: Camera, pose: Pose | None, sensor: SensorModel = SensorModel(),
+                shape: SheetShape | None = None) -> RenderedView:
+    """Render one grey image of the target at ``pose`` (None: a view without any target), on a
+    sheet printed and bent as ``shape`` says (None: flat and true to scale)."""
     rng = np.random.default_rng(sensor.seed)
     h, w = camera.height, camera.width
     radiance = _background(h, w, sensor.background_texture, rng)
     if pose is not None:
-        x, y, valid = plane_coordinates(camera, pose)
+        x, y, valid = plane_coordinates(camera, pose, shape)
         x = np.where(valid, x, -1e3)
         y = np.where(valid, y, -1e3)
         refl, sheet = reflectance(target, x, y)

@@ -9,9 +9,19 @@ from pathlib import Path
 
 import numpy as np
 
+from ..calibrate.pipeline import target_shape_frame
 from ..geometry.camera import Camera
 from ..targets import Target
-from .render import Pose, RenderedView, SensorModel, look_at_pose, random_poses, render_view, write_view
+from .render import (
+    Pose,
+    RenderedView,
+    SensorModel,
+    SheetShape,
+    look_at_pose,
+    random_poses,
+    render_view,
+    write_view,
+)
 
 
 @dataclass(frozen=True)
@@ -31,6 +41,16 @@ class SessionSpec:
     defocused_views: int = 0
     size_range: tuple[float, float] = (0.3, 0.6)
     tilt_range: tuple[float, float] = (15.0, 50.0)
+    # the printed sheet (render.SheetShape): y/x pitch ratio - 1, parabolic warp in metres
+    pitch_ratio: float = 0.0
+    warp_x: float = 0.0
+    warp_y: float = 0.0
+
+    def sheet_shape(self, target: Target) -> SheetShape | None:
+        """The sheet's shape over the frame of the target's features, or None if nominal."""
+        if not (self.pitch_ratio or self.warp_x or self.warp_y):
+            return None
+        return SheetShape(self.pitch_ratio, self.warp_x, self.warp_y, target_shape_frame(target, (0.0, 0.0)))
 
     def camera(self) -> Camera:
         """Ground-truth camera: slightly non-square pixels, off-centre principal point; with k1,
@@ -84,7 +104,7 @@ def render_session(target: Target, spec: SessionSpec, out_dir: Path, progress: b
         if progress:
             sys.stderr.write(f"\r[{k}/{len(views)}] rendering {name}")
             sys.stderr.flush()
-        v = render_view(target, cam, pose, sens)
+        v = render_view(target, cam, pose, sens, spec.sheet_shape(target))
         v.meta["name"] = name
         paths.append(write_view(v, out_dir / f"{name}{ext}"))
     if progress:
@@ -100,7 +120,7 @@ def render_session_views(target: Target, spec: SessionSpec) -> tuple[Camera, lis
     cam = spec.camera()
     views = []
     for name, pose, sens in session_views(target, spec):
-        v = render_view(target, cam, pose, sens)
+        v = render_view(target, cam, pose, sens, spec.sheet_shape(target))
         v.meta["name"] = name
         views.append(v)
     return cam, views

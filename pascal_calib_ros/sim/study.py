@@ -4,6 +4,9 @@
   ``calibrateCamera`` on a checkerboard rendered from the same poses, per scenario.
 - ``edge-bias``: what the edge-bias handling is worth (per-view offset, gamma linearisation,
   curvature correction), on one realistic scenario.
+- ``grids``: ring and disc grids under strong distortion, beside OpenCV's circle-grid finder.
+- ``target-shape``: sheets printed off scale or not flat, calibrated with and without the
+  estimated target shape.
 """
 
 from __future__ import annotations
@@ -155,6 +158,49 @@ def grids(out: Path, views: int, seed: int) -> list[dict[str, Any]]:
     return rows
 
 
+SHAPE_SCENARIOS = (
+    ("flat, true to scale", 0.0, 0.0, 0.0),
+    ("y printed 0.3 % long", 0.003, 0.0, 0.0),
+    ("bent: 1.5 mm / 0.8 mm", 0.0, 0.0015, 0.0008),
+    ("0.3 % long and bent", 0.003, 0.0015, 0.0008),
+)
+
+
+def target_shape(out: Path, views: int, seed: int) -> list[dict[str, Any]]:
+    """Ring grid, 1024x768, k1 = -0.43, 20 views, on sheets of known shape (render.SheetShape):
+    the nominal flat model beside the estimated shape (refine.SHAPE_NAMES), errors against truth."""
+    from ..calibrate.refine import SHAPE_CHOICES
+
+    target = resolve_target("ring_grid_a4")
+    rows: list[dict[str, Any]] = []
+    for label, ratio, wx, wy in SHAPE_SCENARIOS:
+        spec = SessionSpec(width=1024, height=768, focal=620, k1=-0.43, views=max(views, 20), blur=1.0, seed=seed,
+                           size_range=(0.45, 0.9), tilt_range=(10, 45), pitch_ratio=ratio, warp_x=wx, warp_y=wy)
+        cam = spec.camera()
+        shape = spec.sheet_shape(target)
+        imgs = [render_view(target, cam, pose, sens, shape).image for _, pose, sens in session_views(target, spec)]
+        dets = [detect_target(im, target) for im in imgs]
+        for estimate in ("", "warp", "all"):
+            opts = CalibrationOptions(target_shape=SHAPE_CHOICES[estimate])
+            model = f"target shape: {estimate}" if estimate else "flat, nominal"
+            row: dict[str, Any] = {"sheet": label, "model": model}
+            try:
+                res = calibrate(dets, target, opts)
+            except CalibrationError as e:
+                rows.append({**row, "error": str(e)})
+                continue
+            row.update({**_errors(cam, res.K, res.D), "rms": res.rms})
+            if estimate:
+                row.update({"pitch_ratio_pct": 100 * res.shape["pitch_ratio"] if "pitch_ratio" in res.shape_std else 0,
+                            "warp_x_mm": 1000 * res.shape["warp_x"], "warp_y_mm": 1000 * res.shape["warp_y"],
+                            "warned": any("target shape matters" in w for w in res.warnings)})
+                if "pitch_ratio" in res.shape_std:
+                    row["pitch_aspect_corr"] = res.shape_effect["pitch_aspect_correlation"]
+            rows.append(row)
+    _write(rows, out, "target_shape")
+    return rows
+
+
 def _write(rows: list[dict[str, Any]], out: Path, name: str) -> None:
     out.mkdir(parents=True, exist_ok=True)
     keys: list[str] = []
@@ -187,5 +233,7 @@ def run_study(name: str, out: Path, views: int = 15, seed: int = 1) -> None:
         edge_bias(out, views, seed)
     elif name == "grids":
         grids(out, views, seed)
+    elif name == "target-shape":
+        target_shape(out, views, seed)
     else:
         raise ValueError(f"unknown study {name!r}")
