@@ -16,7 +16,16 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from ..geometry.conic import ConicFitError, Ellipse, fit_conic_algebraic, sampson_distance
+from ..geometry.conic import (
+    ConicFitError,
+    Ellipse,
+    ellipses_from_conics,
+    fit_conic_algebraic,
+    fit_conics_algebraic,
+    group_medians,
+    sampson_distance,
+    sampson_distances,
+)
 from ..targets import Target
 from .edges import EdgeError, EdgeFit, refine_edge
 
@@ -100,9 +109,11 @@ def _to_float(image: np.ndarray) -> np.ndarray:
     return image.astype(np.float32)
 
 
-def find_blobs(gray: np.ndarray, params: DetectionParams) -> tuple[list[_Blob], int]:
+def find_blobs(gray: np.ndarray, params: DetectionParams, modes: tuple[str, ...] = ("otsu", "adaptive")
+               ) -> tuple[list[_Blob], int]:
     """Elliptical dark blobs (with their elliptical holes), full-resolution coordinates, and the
-    number of large non-elliptical dark shapes cut by the image border."""
+    number of large non-elliptical dark shapes cut by the image border. Thresholds in ``modes``
+    are tried in turn until one gives a blob with a hole (a ring); the last one's blobs are kept."""
     h, w = gray.shape
     scale = 1
     small = gray
@@ -110,45 +121,73 @@ def find_blobs(gray: np.ndarray, params: DetectionParams) -> tuple[list[_Blob], 
         small = cv2.pyrDown(small)
         scale *= 2
     small8 = np.clip(small, 0, 255).astype(np.uint8)
-    gx = cv2.Sobel(small, cv2.CV_32F, 1, 0, ksize=3)
-    gy = cv2.Sobel(small, cv2.CV_32F, 0, 1, ksize=3)
-    grad = cv2.magnitude(gx, gy) / 8.0  # grey levels per (working) pixel
     blobs: list[_Blob] = []
     cut = 0
-    for mode in ("otsu", "adaptive"):
+    for mode in modes:
         if mode == "otsu":
             _, mask = cv2.threshold(small8, 0, 255, cv2.THRESH_BINARY_INV | cv2.THRESH_OTSU)
         else:
             block = max(3, (max(small8.shape) // 8) | 1)
             mask = cv2.adaptiveThreshold(small8, 255, cv2.ADAPTIVE_THRESH_MEAN_C, cv2.THRESH_BINARY_INV, block, 10)
-        blobs, cut = _blobs_from_mask(mask, scale, w, h, params, grad)
-        if any(b.holes for b in blobs) or mode == "adaptive":
+        blobs, cut = _blobs_from_mask(mask, scale, w, h, params, small)
+        if any(b.holes for b in blobs) or mode == modes[-1]:
             break
     return blobs, cut
 
 
+def _sobel_magnitude_at(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """|3x3 Sobel gradient| / 8 (grey levels per pixel) of ``img`` at integer pixels (x, y)."""
+    h, w = img.shape
+    x0, x1, x2 = np.maximum(x - 1, 0), x, np.minimum(x + 1, w - 1)
+    y0, y1, y2 = np.maximum(y - 1, 0), y, np.minimum(y + 1, h - 1)
+    gx = (img[y0, x2] - img[y0, x0]) + 2 * (img[y1, x2] - img[y1, x0]) + (img[y2, x2] - img[y2, x0])
+    gy = (img[y2, x0] - img[y0, x0]) + 2 * (img[y2, x1] - img[y0, x1]) + (img[y2, x2] - img[y0, x2])
+    return np.hypot(gx.astype(float), gy.astype(float)) / 8.0
+
+
 def _blobs_from_mask(mask: np.ndarray, scale: int, w: int, h: int, params: DetectionParams,
-                     grad: np.ndarray) -> tuple[list[_Blob], int]:
+                     img: np.ndarray) -> tuple[list[_Blob], int]:
     contours, hier = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
     if hier is None:
         return [], 0
     hier = hier[0]
     min_r = params.min_radius / scale
-    out: list[_Blob] = []
-    cut = 0
     margin = params.border_margin
     sh, sw = mask.shape
+    # cheap tests first, then one batched edge-strength median and one batched ellipse fit
+    cand: list[tuple[int, bool]] = []
     for i, c in enumerate(contours):
         if hier[i][3] != -1 or len(c) < 12:
             continue  # holes are visited through their parent
         x, y, bw, bh = cv2.boundingRect(c)
         if min(bw, bh) < 2 * min_r:
             continue
-        at_border = x <= 1 or y <= 1 or x + bw >= sw - 1 or y + bh >= sh - 1
-        if float(np.median(grad[c[:, 0, 1], c[:, 0, 0]])) < params.min_edge_strength:
-            continue  # a soft shading boundary, not a printed edge
-        pts = c[:, 0, :].astype(float) * scale + (scale - 1) / 2
-        fit = _ellipse_of(pts)
+        cand.append((i, x <= 1 or y <= 1 or x + bw >= sw - 1 or y + bh >= sh - 1))
+    if not cand:
+        return [], 0
+    cpts = [contours[i][::2, 0, :] for i, _ in cand]  # every other pixel is plenty for a median
+    owner = np.repeat(np.arange(len(cand)), [len(c) for c in cpts])
+    allp = np.concatenate(cpts)
+    strength = group_medians(_sobel_magnitude_at(img, allp[:, 0], allp[:, 1]), owner, len(cand))
+    strong = [k for k in range(len(cand)) if strength[k] >= params.min_edge_strength]  # else soft shading
+    holes_of = {}
+    for k in strong:
+        hs, j = [], hier[cand[k][0]][2]
+        while j != -1:
+            if len(contours[j]) >= 12:
+                hs.append(j)
+            j = hier[j][0]
+        holes_of[k] = hs
+    to_fit = [cand[k][0] for k in strong] + [j for k in strong for j in holes_of[k]]
+    pts_of = {i: contours[i][:, 0, :].astype(float) * scale + (scale - 1) / 2 for i in to_fit}
+    fits = dict(zip(to_fit, _ellipses_of([pts_of[i] for i in to_fit]), strict=True))
+    out: list[_Blob] = []
+    cut = 0
+    for k in strong:
+        i, at_border = cand[k]
+        pts = pts_of[i]
+        fit = fits[i]
+        x, y, bw, bh = cv2.boundingRect(contours[i])
         if fit is None or fit[1] > 0.03 * min(fit[0].a, fit[0].b) + 0.7 * scale:
             if at_border and bw * bh < 0.5 * sw * sh:
                 cut += 1
@@ -157,17 +196,28 @@ def _blobs_from_mask(mask: np.ndarray, scale: int, w: int, h: int, params: Detec
         touches = bool(pts[:, 0].min() < margin + scale or pts[:, 1].min() < margin + scale
                        or pts[:, 0].max() > w - 1 - margin - scale or pts[:, 1].max() > h - 1 - margin - scale)
         holes = []
-        j = hier[i][2]
-        while j != -1:
-            hc = contours[j]
-            if len(hc) >= 12:
-                hp = hc[:, 0, :].astype(float) * scale + (scale - 1) / 2
-                hf = _ellipse_of(hp)
-                if hf is not None and hf[1] < 0.03 * min(hf[0].a, hf[0].b) + 0.7 * scale:
-                    holes.append((hp, hf[0]))
-            j = hier[j][0]
+        for j in holes_of[k]:
+            hf = fits[j]
+            if hf is not None and hf[1] < 0.03 * min(hf[0].a, hf[0].b) + 0.7 * scale:
+                holes.append((pts_of[j], hf[0]))
         out.append(_Blob(pts, e, holes, touches, res))
     return out, cut
+
+
+def _ellipses_of(contours: list[np.ndarray]) -> list[tuple[Ellipse, float] | None]:
+    """:func:`_ellipse_of` for many contours: one batched algebraic fit, the fitted ellipse and
+    the median |Sampson distance| of its contour (None where no ellipse fits)."""
+    if not contours:
+        return []
+    n = len(contours)
+    owner = np.repeat(np.arange(n), [len(c) for c in contours])
+    pts = np.concatenate(contours)
+    C, ok = fit_conics_algebraic(pts, owner, n)
+    par, real = ellipses_from_conics(np.where(ok[:, None, None], C, np.eye(3)))
+    ok &= real & np.isfinite(par).all(1) & (par[:, 2] > 0) & (par[:, 3] > 0)
+    ok &= np.array([len(c) >= 8 for c in contours])
+    res = group_medians(np.abs(sampson_distances(C, pts, owner)), owner, n)
+    return [(Ellipse(*(float(v) for v in par[k])), float(res[k])) if ok[k] else None for k in range(n)]
 
 
 def _edge(gray: np.ndarray, ellipse: Ellipse, params: DetectionParams) -> EdgeFit:
@@ -244,7 +294,9 @@ def _detect_grids(gray: np.ndarray, work: np.ndarray, target: Target, params: De
 
     from .grids import GridError, detect_grid
 
-    blobs, _ = find_blobs(gray, replace(params, min_radius=min(params.min_radius, 4.0)))
+    # a disc grid has no holes: the Otsu pass could only be discarded, go straight to the adaptive one
+    modes = ("adaptive",) if all(g.kind == "disc" for g in target.grids) else ("otsu", "adaptive")
+    blobs, _ = find_blobs(gray, replace(params, min_radius=min(params.min_radius, 4.0)), modes)
     notes = []
     for gi in range(len(target.grids)):
         try:

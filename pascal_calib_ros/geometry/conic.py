@@ -74,6 +74,102 @@ def fit_conic_algebraic(pts: np.ndarray) -> np.ndarray:
     return normalize_conic(T.T @ Cn @ T)
 
 
+def group_sums(values: np.ndarray, owner: np.ndarray, n_groups: int) -> np.ndarray:
+    """Sums of the rows of ``values`` per group (``owner`` sorted; empty groups sum to zero)."""
+    counts = np.bincount(owner, minlength=n_groups)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    out = np.zeros((n_groups, *values.shape[1:]))
+    filled = counts > 0
+    if filled.any():
+        out[filled] = np.add.reduceat(values, starts[filled], axis=0)
+    return out
+
+
+def group_medians(values: np.ndarray, owner: np.ndarray, n_groups: int) -> np.ndarray:
+    """Median of ``values`` within each group (owner: group of each value; empty groups: nan)."""
+    order = np.lexsort((values, owner))
+    v = np.append(values[order], np.nan)
+    counts = np.bincount(owner, minlength=n_groups)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    lo = np.where(counts > 0, starts + (counts - 1) // 2, len(values))
+    hi = np.where(counts > 0, starts + counts // 2, len(values))
+    return (v[lo] + v[hi]) / 2
+
+
+def fit_conics_algebraic(pts: np.ndarray, owner: np.ndarray, n_groups: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`fit_conic_algebraic` for many point sets at once (rows of ``pts`` grouped by
+    ``owner``, sorted): conics (G, 3, 3) and a mask of groups that gave an ellipse (the others,
+    empty groups and groups of fewer than 5 points included, hold zeros)."""
+    counts = np.bincount(owner, minlength=n_groups).astype(float)
+    safe = np.maximum(counts, 1.0)
+    mean = group_sums(pts, owner, n_groups) / safe[:, None]
+    dist = np.linalg.norm(pts - mean[owner], axis=1)
+    scale = np.sqrt(2) / np.maximum(group_sums(dist, owner, n_groups) / safe, 1e-12)
+    p = (pts - mean[owner]) * scale[owner, None]
+    x, y = p[:, 0], p[:, 1]
+    D1 = np.stack([x * x, x * y, y * y], 1)
+    D2 = np.stack([x, y, np.ones_like(x)], 1)
+    S1 = group_sums(D1[:, :, None] * D1[:, None, :], owner, n_groups)
+    S2 = group_sums(D1[:, :, None] * D2[:, None, :], owner, n_groups)
+    S3 = group_sums(D2[:, :, None] * D2[:, None, :], owner, n_groups)
+    ok = counts >= 5
+    ok &= np.abs(np.linalg.det(S3)) > 1e-12 * np.maximum(np.abs(S3).max(axis=(1, 2)) ** 3, 1e-300)
+    S3 = np.where(ok[:, None, None], S3, np.eye(3))
+    Tm = -np.linalg.solve(S3, np.transpose(S2, (0, 2, 1)))
+    M = S1 + S2 @ Tm
+    M = np.stack([M[:, 2] / 2, -M[:, 1], M[:, 0] / 2], 1)
+    M = np.where(np.isfinite(M).all(axis=(1, 2))[:, None, None], M, np.eye(3))
+    _w, v = np.linalg.eig(M)
+    v = np.real(v)
+    cond = 4 * v[:, 0] * v[:, 2] - v[:, 1] ** 2  # (G, 3): one per eigenvector
+    pick = np.argmax(cond > 0, axis=1)
+    ok &= (cond > 0).any(axis=1)
+    a1 = v[np.arange(n_groups), :, pick]  # (G, 3)
+    a2 = np.einsum("gij,gj->gi", Tm, a1)
+    a, b, c, d, e, f = (*a1.T, *a2.T)
+    Cn = np.stack([np.stack([a, b / 2, d / 2], -1), np.stack([b / 2, c, e / 2], -1),
+                   np.stack([d / 2, e / 2, f], -1)], 1)
+    T = np.zeros((n_groups, 3, 3))
+    T[:, 0, 0] = T[:, 1, 1] = scale
+    T[:, :2, 2] = -scale[:, None] * mean
+    T[:, 2, 2] = 1.0
+    C = np.transpose(T, (0, 2, 1)) @ Cn @ T
+    C = (C + np.transpose(C, (0, 2, 1))) / 2
+    norm = np.linalg.norm(C, axis=(1, 2))
+    ok &= norm > 0
+    C = C / np.where(norm > 0, norm, 1.0)[:, None, None]
+    C *= np.where(C[:, 0, 0] + C[:, 1, 1] < 0, -1.0, 1.0)[:, None, None]
+    ok &= np.isfinite(C).all(axis=(1, 2))
+    return np.where(ok[:, None, None], C, 0.0), ok
+
+
+def sampson_distances(C: np.ndarray, pts: np.ndarray, owner: np.ndarray) -> np.ndarray:
+    """:func:`sampson_distance` of each point to its own group's conic C[owner]."""
+    X = np.concatenate([pts, np.ones((len(pts), 1))], 1)
+    CX = np.einsum("nj,njk->nk", X, C[owner])
+    alg = np.sum(CX * X, axis=1)
+    return alg / np.maximum(2 * np.linalg.norm(CX[:, :2], axis=1), 1e-300)
+
+
+def ellipses_from_conics(C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:meth:`Ellipse.from_conic` for (G, 3, 3) conics: parameters (G, 5) = (cx, cy, a, b, angle)
+    and a mask of real ellipses."""
+    C = C / np.maximum(np.linalg.norm(C, axis=(1, 2)), 1e-300)[:, None, None]
+    C = C * np.where(C[:, 0, 0] + C[:, 1, 1] < 0, -1.0, 1.0)[:, None, None]
+    A = C[:, :2, :2]
+    det = A[:, 0, 0] * A[:, 1, 1] - A[:, 0, 1] ** 2
+    ok = (det > 0) & (A[:, 0, 0] > 0)
+    A_safe = np.where(ok[:, None, None], A, np.eye(2))
+    ctr = -np.linalg.solve(A_safe, C[:, :2, 2:3])[:, :, 0]
+    k = -(C[:, 2, 2] + np.einsum("gi,gi->g", C[:, :2, 2], ctr))
+    ok &= k > 0
+    w, v = np.linalg.eigh(A_safe / np.where(k > 0, k, 1.0)[:, None, None])
+    w = np.where(ok[:, None], w, 1.0)
+    out = np.stack([ctr[:, 0], ctr[:, 1], 1 / np.sqrt(w[:, 0]), 1 / np.sqrt(w[:, 1]),
+                    np.arctan2(v[:, 1, 0], v[:, 0, 0])], 1)
+    return out, ok
+
+
 def sampson_distance(C: np.ndarray, pts: np.ndarray) -> np.ndarray:
     """First-order geometric (Sampson) distance of points to a conic, signed (negative inside)."""
     X = np.concatenate([pts, np.ones((len(pts), 1))], 1)
