@@ -67,7 +67,8 @@ def _run_session(tmp_path: Path, source: Path, calib_params: dict, replay_params
     client = RosClient(dom)
     try:
         status = status_subscription(client)
-        assert client.spin_until(lambda: latest_status(status).get("ready") == "True", 60), cal.log() + rep.log()
+        assert client.spin_until(lambda: latest_status(status).get("ready") == "True", 60), (
+            f"{latest_status(status)}\n{cal.log()}{rep.log()}")
         if call:
             resp = client.call_trigger("/pascal_calib/calibrate")
             assert resp.success, resp.message
@@ -173,3 +174,39 @@ def test_invalid_parameters_refuse_to_start(tmp_path: Path) -> None:
     rep = NodeProcess("replay_node", {"source": str(tmp_path / "missing")}, dom, tmp_path / "rep.log")
     assert rep.wait(30) == 2
     assert "no image files" in rep.log()
+
+
+def test_grid_target_with_estimated_shape(tmp_path: Path) -> None:
+    """A ring grid printed on a bent sheet: the node collects grid views, calibrates with the
+    estimated warp and writes it to calibration.json; a ring target with a shape is refused."""
+    imgs = tmp_path / "imgs"
+    spec = SessionSpec(width=800, height=600, focal=600, views=10, k1=-0.2, seed=5, size_range=(0.5, 0.85),
+                       warp_x=0.001)
+    render_session(resolve_target("ring_grid_a4"), spec, imgs)
+    dom = next_domain_id()
+    out = tmp_path / "out"
+    cal = NodeProcess("calibration_node", {"target": "ring_grid_a4", "target_shape": "warp", "min_views": 6,
+                                           "min_view_distance": 0.01, "output_dir": str(out)},
+                      dom, tmp_path / "cal.log")
+    rep = NodeProcess("replay_node", {"source": str(imgs), "rate": 5.0, "wait_for_subscribers": 1,
+                                      "exit_when_done": True}, dom, tmp_path / "rep.log")
+    client = RosClient(dom)
+    try:
+        status = status_subscription(client)
+        assert client.spin_until(lambda: rep.proc.poll() is not None, 60), rep.log()
+        assert client.spin_until(lambda: int(latest_status(status).get("views_accepted", 0)) >= 8, 10), cal.log()
+        r = client.call_trigger("/pascal_calib/calibrate")
+        assert r.success, r.message
+        assert "method=grid" in r.message and "target shape matters" in r.message
+        got = camera_info_subscription(client)
+        assert client.spin_until(lambda: bool(got), 10), cal.log()
+        _check_k(got[-1].k, _truth(imgs))
+        doc = json.loads((out / "calibration.json").read_text())
+        assert abs(doc["target_shape"]["warp_x"] - 0.001) < 1e-4, doc["target_shape"]
+    finally:
+        client.close()
+        rep.stop()
+        assert cal.stop() == 0, cal.log()
+    bad = NodeProcess("calibration_node", {"target": "ring_a4", "target_shape": "warp"}, dom, tmp_path / "bad.log")
+    assert bad.wait(30) == 2
+    assert "target_shape needs a grid or checkerboard target" in bad.log()

@@ -2,7 +2,9 @@
 coverage per axis (like ROS ``camera_calibration``'s X / Y / size / skew bars).
 
 A view is summarised by the target's outer ellipse (the first circle): X, Y = centre / image
-size, size = sqrt(area) / image diagonal, skew = 1 - b / a (tilt). A new view is accepted if its
+size, size = sqrt(area) / image diagonal, skew = 1 - b / a (tilt); a grid by all its elements:
+X, Y = mean of the element centres, size = sqrt(area of their convex hull) / diagonal, skew =
+1 - the median b / a of the elements. A new view is accepted if its
 L1 distance to every stored view in that space exceeds ``min_distance``. Coverage of an axis is
 (max - min) over the stored views divided by the axis' expected span, clipped to [0, 1].
 """
@@ -12,6 +14,7 @@ from __future__ import annotations
 from collections import Counter
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 
 from ..detect.rings import Detection
@@ -25,13 +28,23 @@ def view_parameters(det: Detection) -> np.ndarray | None:
     """(x, y, size, skew) of a usable detection, None without a circle."""
     if not det.edges:
         return None
-    try:
-        e = Ellipse.from_conic(det.edges[0].conic)
-    except ConicFitError:
+    ellipses = []
+    for edge in det.edges if len(det.edges) > 3 else det.edges[:1]:
+        try:
+            ellipses.append(Ellipse.from_conic(edge.conic))
+        except ConicFitError:
+            continue
+    if not ellipses:
         return None
-    a, b = max(e.a, e.b), min(e.a, e.b)
     diag = float(np.hypot(det.width, det.height))
-    return np.array([e.cx / det.width, e.cy / det.height, np.sqrt(np.pi * a * b) / diag, 1.0 - b / a])
+    ratios = [min(e.a, e.b) / max(e.a, e.b) for e in ellipses]
+    if len(ellipses) == 1:
+        e = ellipses[0]
+        return np.array([e.cx / det.width, e.cy / det.height, np.sqrt(np.pi * e.a * e.b) / diag, 1.0 - ratios[0]])
+    c = np.array([[e.cx, e.cy] for e in ellipses], np.float32)
+    area = float(cv2.contourArea(cv2.convexHull(c)))
+    return np.array([float(c[:, 0].mean()) / det.width, float(c[:, 1].mean()) / det.height,
+                     np.sqrt(area) / diag, 1.0 - float(np.median(ratios))])
 
 
 @dataclass

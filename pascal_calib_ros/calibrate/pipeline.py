@@ -50,7 +50,7 @@ class CalibrationOptions:
     zero_skew: bool = True
     edge_offsets: bool = True
     use_corners: bool = True  # adjust checkerboard corners too, when the target has them
-    max_points_per_edge: int = 150
+    max_points_per_edge: int = 720
     max_points_per_view: int = 700  # grids: spread over all edges (speed of the refinement)
     outlier_factor: float = 4.0  # drop a view whose RMS exceeds this times the median
     min_views: int = MIN_VIEWS

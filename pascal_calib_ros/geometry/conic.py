@@ -126,7 +126,8 @@ def fit_conics_algebraic(pts: np.ndarray, owner: np.ndarray, n_groups: int) -> t
     ok &= (cond > 0).any(axis=1)
     a1 = v[np.arange(n_groups), :, pick]  # (G, 3)
     a2 = np.einsum("gij,gj->gi", Tm, a1)
-    a, b, c, d, e, f = (*a1.T, *a2.T)
+    a, b, c = a1[:, 0], a1[:, 1], a1[:, 2]
+    d, e, f = a2[:, 0], a2[:, 1], a2[:, 2]
     Cn = np.stack([np.stack([a, b / 2, d / 2], -1), np.stack([b / 2, c, e / 2], -1),
                    np.stack([d / 2, e / 2, f], -1)], 1)
     T = np.zeros((n_groups, 3, 3))

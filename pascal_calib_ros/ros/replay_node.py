@@ -34,7 +34,7 @@ PARAMS: tuple[tuple[str, Any, str], ...] = (
     ("loop", False, "start again at the end"),
     ("frame_id", "", "header frame_id; empty: the bag's, else 'camera'"),
     ("start_delay", 0.0, "seconds to wait before the first message"),
-    ("wait_for_subscribers", 0, "wait (up to 30 s) until this many subscribers are matched"),
+    ("wait_for_subscribers", 0, "wait (up to 30 s) until this many subscribers are matched, then 0.5 s"),
     ("exit_when_done", False, "shut down after the last message (ignored with loop)"),
     ("qos", "reliable", "reliable | best_effort"),
     ("transport", "raw", "folders: raw (decode to Image) | compressed (file bytes as CompressedImage)"),
@@ -114,6 +114,9 @@ class ReplayNode(Node):
         while want > 0 and time.monotonic() < deadline and not self.done.is_set():
             n = self.pub_raw.get_subscription_count() + self.pub_compressed.get_subscription_count()
             if n >= want:
+                # the publisher sees the subscriber before the subscriber has matched the
+                # publisher; messages sent in between can be lost: let discovery settle
+                time.sleep(0.5)
                 return
             time.sleep(0.05)
 

@@ -121,7 +121,7 @@ def plane_coordinates(camera: Camera, pose: Pose, shape: SheetShape | None = Non
         P = (X - pose.t) @ pose.R  # R^T (X - t)
         if shape is not None:
             P[:, 1] = shape.nominal_y(P[:, 1])
-            z = shape.z(P[:, 0], P[:, 1])
+            z = shape.z(np.clip(P[:, 0], -10, 10), np.clip(P[:, 1], -10, 10))  # rays far off the sheet stay finite
     valid = (lam > 0).reshape(h, w)
     # the inverse map is only trustworthy where distortion is monotonic: check by reprojection
     back = camera.project(X[lam > 0]) if np.any(lam > 0) else np.zeros((0, 2))
