@@ -23,7 +23,7 @@ from ..geometry.circular import (
     vanishing_line_from_centre,
     vanishing_line_huang,
 )
-from ..geometry.conic import Ellipse, normalize_conic
+from ..geometry.conic import Ellipse, ellipses_from_conics, normalize_conic
 from ..geometry.homography import fit_homography
 from ..geometry.iac import IacSolution, iac_from_circular_points
 from ..targets import Target
@@ -295,17 +295,12 @@ def grid_homography_init(dets: list[Detection], target: Target, origin: tuple[fl
     Hs: list[np.ndarray | None] = []
     pts = []
     for d in dets:
-        src, dst = [], []
-        for e in d.edges:
-            c = target.circles[e.circle]
-            if not c.dark_inside:
-                continue
-            try:
-                el = Ellipse.from_conic(e.conic)
-            except Exception:
-                continue
-            src.append([c.center[0] - origin[0], c.center[1] - origin[1]])
-            dst.append([el.cx, el.cy])
+        outer = [e for e in d.edges if target.circles[e.circle].dark_inside]
+        par, real = (ellipses_from_conics(np.array([e.conic for e in outer])) if outer
+                     else (np.zeros((0, 5)), np.zeros(0, bool)))
+        src = [[target.circles[e.circle].center[0] - origin[0], target.circles[e.circle].center[1] - origin[1]]
+               for e, ok in zip(outer, real, strict=True) if ok]
+        dst = [p[:2] for p, ok in zip(par, real, strict=True) if ok]
         if len(src) < 6:
             Hs.append(None)
             continue

@@ -16,23 +16,22 @@ from dataclasses import replace
 import numpy as np
 
 from ..detect.rings import Detection
-from ..geometry.conic import ConicFitError, Ellipse, fit_conic_algebraic
+from ..geometry.conic import ellipses_from_conics, fit_conics_algebraic
 from ..targets import Target
 
 
 def _lines_of_centres(det: Detection, target: Target) -> list[np.ndarray]:
     """Image centres of the elements along each labelled row and column (>= 3 each)."""
     pos: dict[tuple[int, int], np.ndarray] = {}
-    for e in det.edges:
-        c = target.circles[e.circle]
-        if not c.dark_inside or "_grid[" not in c.feature:
-            continue
-        r, col = (int(v) for v in c.feature.split("[")[1].split("]")[0].split(","))
-        try:
-            el = Ellipse.from_conic(e.conic)
-        except ConicFitError:
-            continue
-        pos[(r, col)] = np.array([el.cx, el.cy])
+    circles = target.circles
+    elems = [e for e in det.edges if circles[e.circle].dark_inside and "_grid[" in circles[e.circle].feature]
+    if not elems:
+        return []
+    par, real = ellipses_from_conics(np.array([e.conic for e in elems]))
+    for e, p, ok in zip(elems, par, real, strict=True):
+        if ok:
+            r, col = (int(v) for v in target.circles[e.circle].feature.split("[")[1].split("]")[0].split(","))
+            pos[(r, col)] = p[:2]
     lines = []
     for key_axis in (0, 1):
         groups: dict[int, list[np.ndarray]] = {}
@@ -102,12 +101,12 @@ def undistort_detections(dets: list[Detection], lam: float) -> list[Detection]:
     for d in dets:
         centre = np.array([d.width / 2, d.height / 2])
         edges = []
-        for e in d.edges:
-            p = _undistort(e.points, lam, centre)
-            try:
-                edges.append(replace(e, points=p, conic=fit_conic_algebraic(p)))
-            except ConicFitError:
-                continue
+        if d.edges:
+            pts = [_undistort(e.points, lam, centre) for e in d.edges]
+            owner = np.repeat(np.arange(len(pts)), [len(p) for p in pts])
+            conics, ok = fit_conics_algebraic(np.concatenate(pts), owner, len(pts))
+            edges = [replace(e, points=p, conic=C) for e, p, C, good in zip(d.edges, pts, conics, ok, strict=True)
+                     if good]
         corners = None if d.corners is None else _undistort(d.corners, lam, centre)
         out.append(replace(d, edges=edges, corners=corners))
     return out

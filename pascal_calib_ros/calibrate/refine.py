@@ -29,6 +29,7 @@ assembled view by view (each view's parameters touch its rows only).
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 
 import cv2
@@ -128,6 +129,8 @@ class Problem:
         self.corner_obj = np.concatenate([v.corner_obj for v in views]) if views else np.zeros((0, 2))
         self.view_of_corner = np.concatenate([np.full(len(v.corners), i) for i, v in enumerate(views)])
         self.n_edge = len(self.pts)
+        bounds = np.concatenate([[0], np.cumsum([len(v.points) for v in views])])
+        self.edge_slices = [slice(int(a), int(b)) for a, b in itertools.pairwise(bounds)]
         self.n_corner = len(self.corners)
         self.frame = shape_frame or shape_frame_of(np.concatenate([self.centers, self.corner_obj]))
         rows = np.concatenate([self.view_of_pt, np.repeat(self.view_of_corner, 2)])
@@ -200,16 +203,25 @@ class Problem:
     def residuals(self, x: np.ndarray, intr0: np.ndarray) -> np.ndarray:
         return self.evaluate(x, intr0, jac=False)[0]
 
+    def _per_view(self, A: np.ndarray, M: np.ndarray) -> np.ndarray:
+        """Rows of A (n, ..., 3) times their view's matrix M[v] (3, k): one product per view (the
+        edge rows of a view are contiguous)."""
+        out = np.empty((*A.shape[:-1], M.shape[-1]))
+        for v, sl in enumerate(self.edge_slices):
+            out[sl] = A[sl] @ M[v]
+        return out
+
     def _edges(self, K: np.ndarray, D: np.ndarray, R: np.ndarray, dR: np.ndarray, t: np.ndarray,
                shape: np.ndarray, offsets: np.ndarray, jac: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         vi = self.view_of_pt
-        Rv, tv = R[vi], t[vi]
+        Rt = np.transpose(R, (0, 2, 1))
+        tv = t[vi]
         ctr = self.board(self.centers, shape)[0]
         xn = undistort(pixels_to_normalized(self.pts, K), D, iterations=6)
-        n = Rv[:, :, 2]
+        n = R[:, :, 2][vi]
         lam = (np.sum(n * tv, 1) + ctr[:, 2]) / (np.sum(n[:, :2] * xn, 1) + n[:, 2])
         X = np.concatenate([xn, np.ones((len(xn), 1))], 1) * lam[:, None]
-        P = np.einsum("nji,nj->ni", Rv, X - tv)  # R^T (X - t)
+        P = self._per_view(X - tv, R)  # R^T (X - t), as rows
         rel = P[:, :2] - ctr[:, :2]
         rho = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1e-12)
         u = rel / rho[:, None]
@@ -218,8 +230,8 @@ class Problem:
         for step in range(2):
             # the circle point at angle u, drawn on the printed sheet (each point at its own z)
             Q, dPds, slope = self.board(self.centers + r * u, shape)
-            q, dqdX, dqdI = project_with_jacobians(np.einsum("nij,nj->ni", Rv, Q) + tv, K, D)
-            dqdP = np.einsum("nij,njk->nik", dqdX, Rv)  # image motion per board-frame motion
+            q, dqdX, dqdI = project_with_jacobians(self._per_view(Q, Rt) + tv, K, D)
+            dqdP = self._per_view(dqdX, R)  # image motion per board-frame motion
             tang = np.stack([-u[:, 1], s1 * u[:, 0], slope[:, 0] * -u[:, 1] + slope[:, 1] * u[:, 0]], 1)
             ti = np.einsum("nij,nj->ni", dqdP, tang)  # image of the circle's tangent (per radian / r)
             if step:
@@ -244,10 +256,13 @@ class Problem:
         nf = len(self.free)
         Jg[:, :nf] = -np.einsum("ni,nij->nj", nrm, dqdI[:, :, self.free])
         if self.shape_idx:
-            g = np.einsum("nj,njk->nk", h, Rv)  # n^T dq/dP
+            g = self._per_view(h, R)  # n^T dq/dP
             Jg[:, nf:] = -np.einsum("nk,nks->ns", g, dPds[:, :, self.shape_idx])
         Jv = np.empty((len(f), self.per_view))
-        Jv[:, : self.dof - 3] = -np.einsum("nj,nkji,ni->nk", h, dR[vi], Q)
+        # n^T dq/dX . (dR/drv_k Q): the outer product h Q^T against each view's dR/drv_k
+        nr = self.dof - 3
+        Jv[:, :nr] = -self._per_view((h[:, :, None] * Q[:, None, :]).reshape(-1, 1, 9),
+                                     dR.reshape(len(dR), nr, 9).transpose(0, 2, 1))[:, 0, :]
         Jv[:, self.dof - 3: self.dof] = -h
         if self.use_offsets:
             Jv[:, self.dof] = -self.signs
