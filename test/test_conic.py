@@ -5,11 +5,15 @@ from pascal_calib_ros.geometry.conic import (
     ConicFitError,
     Ellipse,
     conic_curvature,
+    ellipses_from_conics,
     fit_conic,
     fit_conic_algebraic,
+    fit_conics_algebraic,
+    group_medians,
     line_conic_intersection,
     normalize_conic,
     sampson_distance,
+    sampson_distances,
 )
 
 
@@ -62,3 +66,32 @@ def test_line_misses_circle_in_complex_points() -> None:
     for r in (p, q):
         r = r / r[2]
         assert abs(r[1] - 2) < 1e-12 and abs(r[0] ** 2 + r[1] ** 2 - 1) < 1e-12 and abs(r[0].imag) > 1
+
+
+def test_batched_fits_match_one_at_a_time() -> None:
+    """fit_conics_algebraic, ellipses_from_conics, sampson_distances and group_medians (used by
+    the grid detector) agree with their one-curve counterparts; degenerate groups are flagged."""
+    rng = np.random.default_rng(3)
+    sets = []
+    for _ in range(30):
+        e = Ellipse(rng.uniform(0, 1000), rng.uniform(0, 700), rng.uniform(5, 30), rng.uniform(4, 25),
+                    rng.uniform(0, 3))
+        n = int(rng.integers(12, 80))
+        sets.append(e.sample(n) + rng.normal(0, 0.1, (n, 2)))
+    sets.append(np.array([[0.0, 0.0], [1, 1], [2, 2], [3, 3], [4, 4]]))  # collinear
+    sets.append(np.array([[0.0, 0.0], [1, 2]]))  # too few points
+    pts = np.concatenate(sets)
+    owner = np.repeat(np.arange(len(sets)), [len(s) for s in sets])
+    C, ok = fit_conics_algebraic(pts, owner, len(sets) + 1)  # one empty group at the end
+    assert ok[:30].all() and not ok[30:].any()
+    par, real = ellipses_from_conics(C[:30])
+    assert real.all()
+    d = sampson_distances(C, pts, owner)
+    med = group_medians(np.abs(d), owner, len(sets) + 1)
+    for k in range(30):
+        ref = fit_conic_algebraic(sets[k])
+        assert np.allclose(C[k], ref, atol=1e-12)
+        e = Ellipse.from_conic(ref)
+        assert np.allclose(par[k, :4], [e.cx, e.cy, e.a, e.b], atol=1e-8)
+        assert np.isclose(med[k], np.median(np.abs(sampson_distance(ref, sets[k]))))
+    assert np.isnan(med[-1])

@@ -87,8 +87,9 @@ def group_sums(values: np.ndarray, owner: np.ndarray, n_groups: int) -> np.ndarr
 
 def group_medians(values: np.ndarray, owner: np.ndarray, n_groups: int) -> np.ndarray:
     """Median of ``values`` within each group (owner: group of each value; empty groups: nan)."""
-    order = np.lexsort((values, owner))
-    v = np.append(values[order], np.nan)
+    lo_v, hi_v = (float(values.min()), float(values.max())) if len(values) else (0.0, 1.0)
+    key = owner + 0.999 * (values - lo_v) / max(hi_v - lo_v, 1e-300)  # group, then value: one float sort
+    v = np.append(values[np.argsort(key, kind="stable")], np.nan)
     counts = np.bincount(owner, minlength=n_groups)
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
     lo = np.where(counts > 0, starts + (counts - 1) // 2, len(values))
