@@ -93,6 +93,11 @@ def format_summary(res: CalibrationResult) -> str:
         lines.append("  against a flat nominal sheet: " + "  ".join(
             f"{k} {res.shape_effect[k]:+.3f}" for k in ("fx", "fy", "cx", "cy"))
             + f"  (edge RMS {res.shape_effect['rms_flat']:.4f} -> {res.rms:.4f} px)")
+    if len(res.circle_names) > 2 and res.edge_circles:
+        from .io.report import per_circle_rms
+
+        worst = list(per_circle_rms(res).items())[:3]
+        lines.append("worst circles (edge RMS over all views): " + ", ".join(f"{k} {v:.3f} px" for k, v in worst))
     lines += [f"warning: {w}" for w in res.warnings]
     return "\n".join(lines)
 

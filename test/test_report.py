@@ -18,6 +18,8 @@ def test_report_png_and_json(tmp_path: Path, ring_target: Target, ring_session_d
     assert 0 < data["coverage"]["image_fraction_inside_some_view"] < 1
     assert data["distortion_field"]["max_px"] > 5  # k1 = -0.3
     assert set(data["std"]) >= {"fx", "k1"}
+    per_circle = data["residuals"]["per_circle_rms_px"]
+    assert set(per_circle) == {"ring/outer", "ring/inner"} and all(0 < v < 0.2 for v in per_circle.values())
 
 
 def test_distortion_field_is_zero_without_distortion() -> None:

@@ -88,6 +88,8 @@ class CalibrationResult:
     # residuals (px, positive outwards), for reports
     edge_points: list[np.ndarray] = field(default_factory=list)
     edge_residuals: list[np.ndarray] = field(default_factory=list)
+    edge_circles: list[np.ndarray] = field(default_factory=list)  # Target.circles index of each point
+    circle_names: list[str] = field(default_factory=list)  # feature name of each Target.circles entry
     # estimated target shape (empty unless asked for): value, standard deviation, and how much
     # each intrinsic moved against a fit that assumes the nominal flat sheet (fx, fy, cx, cy, the
     # flat fit's rms_flat and, with the pitch ratio, its pitch_aspect_correlation with fy/fx)
@@ -258,7 +260,8 @@ def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions
     _check_result(res, w, h, warnings)
     return CalibrationResult(res.K, res.D, w, h, opt.method, res.rms, res.std, sol.degeneracy_ratio, reports,
                              warnings, sol.K, True, opt.distortion, res.poses, [v.points for v in views],
-                             res.residuals, shape, shape_std, shape_effect)
+                             res.residuals, [v.circle_ids for v in views], [c.feature for c in target.circles],
+                             shape, shape_std, shape_effect)
 
 
 def target_shape_frame(target: Target, origin: tuple[float, float]) -> tuple[float, float, float, float]:

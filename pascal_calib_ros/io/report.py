@@ -35,6 +35,20 @@ def _normals(points: np.ndarray) -> np.ndarray:
     return d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
 
 
+def per_circle_rms(res: CalibrationResult) -> dict[str, float]:
+    """RMS edge residual (px) of every circle over all used views, keyed by the circle's feature
+    name (``ring/outer``, ``disc_grid[2,5]`` ...) or its index; worst first."""
+    if not res.edge_circles:
+        return {}
+    ids = np.concatenate(res.edge_circles)
+    r = np.concatenate(res.edge_residuals)
+    out = {}
+    for c in np.unique(ids):
+        key = res.circle_names[c] if c < len(res.circle_names) else str(int(c))
+        out[key] = float(np.sqrt(np.mean(r[ids == c] ** 2)))
+    return dict(sorted(out.items(), key=lambda kv: -kv[1]))
+
+
 def report_numbers(res: CalibrationResult, dets: list[Detection]) -> dict[str, Any]:
     cam = Camera(res.K, res.D, res.width, res.height)
     _, disp = distortion_field(cam)
@@ -48,6 +62,7 @@ def report_numbers(res: CalibrationResult, dets: list[Detection]) -> dict[str, A
         "views": [{"name": v.name, "used": v.used, "reason": v.reason, "rms_px": v.rms, "edge_offset_px": v.edge_offset}
                   for v in res.views],
         "residuals": {"per_view_rms_px": [float(np.sqrt(np.mean(r * r))) for r in res.edge_residuals],
+                      "per_circle_rms_px": per_circle_rms(res),
                       "max_abs_px": float(max((np.max(np.abs(r)) for r in res.edge_residuals), default=0.0))},
         "coverage": {"image_fraction_inside_some_view": covered},
         "distortion_field": {"max_px": float(mag.max()), "mean_px": float(mag.mean())},
