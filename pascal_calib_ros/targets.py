@@ -242,12 +242,7 @@ def parse_target(data: Any, source: str = "<dict>") -> Target:
         kind = f.get("type")
         if kind == "ring":
             c = _floats(_require(f, "center", where), 2, f"{where}.center")
-            ro = _positive(_require(f, "outer_radius", where), f"{where}.outer_radius")
-            ri = _positive(_require(f, "inner_radius", where), f"{where}.inner_radius")
-            if ri >= ro:
-                raise TargetError(f"{where}: inner_radius {ri} must be smaller than outer_radius {ro}")
-            if ri / ro > 0.9:
-                raise TargetError(f"{where}: ring too thin (inner/outer = {ri / ro:.2f} > 0.9) to detect both edges")
+            ro, ri = _ring_radii(f, where, "ring")
             rings.append(Ring((c[0], c[1]), ro, ri))
         elif kind == "disc":
             c = _floats(_require(f, "center", where), 2, f"{where}.center")
@@ -275,6 +270,17 @@ def parse_target(data: Any, source: str = "<dict>") -> Target:
     return target
 
 
+def _ring_radii(f: dict[str, Any], where: str, noun: str) -> tuple[float, float]:
+    """Validated (outer_radius, inner_radius) of a ring or ring grid feature."""
+    ro = _positive(_require(f, "outer_radius", where), f"{where}.outer_radius")
+    ri = _positive(_require(f, "inner_radius", where), f"{where}.inner_radius")
+    if ri >= ro:
+        raise TargetError(f"{where}: inner_radius {ri} must be smaller than outer_radius {ro}")
+    if ri / ro > 0.9:
+        raise TargetError(f"{where}: {noun} too thin (inner/outer = {ri / ro:.2f} > 0.9) to detect both edges")
+    return ro, ri
+
+
 def _parse_grid(f: dict[str, Any], kind: str, where: str) -> CircleGrid:
     o = _floats(_require(f, "origin", where), 2, f"{where}.origin")
     dims = []
@@ -285,12 +291,7 @@ def _parse_grid(f: dict[str, Any], kind: str, where: str) -> CircleGrid:
         dims.append(v)
     pitch = _positive(_require(f, "pitch", where), f"{where}.pitch")
     if kind == "ring_grid":
-        ro = _positive(_require(f, "outer_radius", where), f"{where}.outer_radius")
-        ri = _positive(_require(f, "inner_radius", where), f"{where}.inner_radius")
-        if ri >= ro:
-            raise TargetError(f"{where}: inner_radius {ri} must be smaller than outer_radius {ro}")
-        if ri / ro > 0.9:
-            raise TargetError(f"{where}: rings too thin (inner/outer = {ri / ro:.2f} > 0.9) to detect both edges")
+        ro, ri = _ring_radii(f, where, "rings")
     else:
         ro, ri = _positive(_require(f, "radius", where), f"{where}.radius"), 0.0
     if 2 * ro >= pitch:

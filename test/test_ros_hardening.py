@@ -123,9 +123,10 @@ def test_corrupt_compressed_frames(tmp_path: Path) -> None:
                 client.executor.spin_once(timeout_sec=0.01)
                 if int(latest_status(status).get("frames_bad", 0)) > 5:
                     break
-        assert client.spin_until(lambda: int(latest_status(status).get("frames_bad", 0)) > 5, 30), cal.log()
+        assert client.spin_until(lambda: int(latest_status(status).get("frames_bad", 0)) > 5, 30), (
+            f"{latest_status(status)}\n{cal.log()}")
         kv = latest_status(status)
-        assert any("cannot decode compressed image" in k or "no data" in k for k in kv)
+        assert any("cannot decode compressed image" in k or "no data" in k for k in kv), kv
         assert cal.proc.poll() is None
     finally:
         client.close()

@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 
 from ..detect.rings import Detection
-from ..geometry.conic import ConicFitError, Ellipse
+from ..geometry.conic import ellipses_from_conics
 
 AXES = ("x", "y", "size", "skew")
 SPANS = {"x": 0.6, "y": 0.6, "size": 0.25, "skew": 0.3}
@@ -28,23 +28,19 @@ def view_parameters(det: Detection) -> np.ndarray | None:
     """(x, y, size, skew) of a usable detection, None without a circle."""
     if not det.edges:
         return None
-    ellipses = []
-    for edge in det.edges if len(det.edges) > 3 else det.edges[:1]:
-        try:
-            ellipses.append(Ellipse.from_conic(edge.conic))
-        except ConicFitError:
-            continue
-    if not ellipses:
+    edges = det.edges if len(det.edges) > 3 else det.edges[:1]
+    par, real = ellipses_from_conics(np.array([e.conic for e in edges]))
+    par = par[real]
+    if not len(par):
         return None
     diag = float(np.hypot(det.width, det.height))
-    ratios = [min(e.a, e.b) / max(e.a, e.b) for e in ellipses]
-    if len(ellipses) == 1:
-        e = ellipses[0]
-        return np.array([e.cx / det.width, e.cy / det.height, np.sqrt(np.pi * e.a * e.b) / diag, 1.0 - ratios[0]])
-    c = np.array([[e.cx, e.cy] for e in ellipses], np.float32)
-    area = float(cv2.contourArea(cv2.convexHull(c)))
-    return np.array([float(c[:, 0].mean()) / det.width, float(c[:, 1].mean()) / det.height,
-                     np.sqrt(area) / diag, 1.0 - float(np.median(ratios))])
+    a, b = np.maximum(par[:, 2], par[:, 3]), np.minimum(par[:, 2], par[:, 3])
+    if len(par) == 1:
+        area = float(np.pi * a[0] * b[0])
+    else:
+        area = float(cv2.contourArea(cv2.convexHull(par[:, :2].astype(np.float32))))
+    return np.array([float(par[:, 0].mean()) / det.width, float(par[:, 1].mean()) / det.height,
+                     np.sqrt(area) / diag, 1.0 - float(np.median(b / a))])
 
 
 @dataclass

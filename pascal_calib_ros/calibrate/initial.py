@@ -296,8 +296,7 @@ def grid_homography_init(dets: list[Detection], target: Target, origin: tuple[fl
     pts = []
     for d in dets:
         outer = [e for e in d.edges if target.circles[e.circle].dark_inside]
-        par, real = (ellipses_from_conics(np.array([e.conic for e in outer])) if outer
-                     else (np.zeros((0, 5)), np.zeros(0, bool)))
+        par, real = ellipses_from_conics(np.array([e.conic for e in outer]))
         src = [[target.circles[e.circle].center[0] - origin[0], target.circles[e.circle].center[1] - origin[1]]
                for e, ok in zip(outer, real, strict=True) if ok]
         dst = [p[:2] for p, ok in zip(par, real, strict=True) if ok]

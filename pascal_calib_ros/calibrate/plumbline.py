@@ -25,12 +25,10 @@ def _lines_of_centres(det: Detection, target: Target) -> list[np.ndarray]:
     pos: dict[tuple[int, int], np.ndarray] = {}
     circles = target.circles
     elems = [e for e in det.edges if circles[e.circle].dark_inside and "_grid[" in circles[e.circle].feature]
-    if not elems:
-        return []
     par, real = ellipses_from_conics(np.array([e.conic for e in elems]))
     for e, p, ok in zip(elems, par, real, strict=True):
         if ok:
-            r, col = (int(v) for v in target.circles[e.circle].feature.split("[")[1].split("]")[0].split(","))
+            r, col = (int(v) for v in circles[e.circle].feature.split("[")[1].split("]")[0].split(","))
             pos[(r, col)] = p[:2]
     lines = []
     for key_axis in (0, 1):

@@ -392,13 +392,12 @@ def levenberg_marquardt(prob: Problem, x0: np.ndarray, intr0: np.ndarray, loss_s
 def refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[np.ndarray], dof: int,
            distortion: str = "plumb_bob", zero_skew: bool = True, use_offsets: bool = True,
            loss_scale: float = 0.3, max_iter: int = 60, shape: tuple[str, ...] = (),
-           shape_frame: tuple[float, float, float, float] | None = None,
-           shape0: np.ndarray | None = None) -> RefineResult:
+           shape_frame: tuple[float, float, float, float] | None = None) -> RefineResult:
     """Least squares over K, D, poses, offsets and the named shape parameters (module docstring).
 
     ``shape_frame`` is (x mid, y mid, x half-width, y half-width) of the warp in the local frame
-    (default: the extent of the observed circles); ``shape0`` the starting (or fixed) values of
-    all three :data:`SHAPE_NAMES`."""
+    (default: the extent of the observed circles); the shape starts flat and true to scale, and
+    shape parameters not named stay so."""
     if distortion not in DISTORTION_MODELS:
         raise ValueError(f"unknown distortion model {distortion!r}: {', '.join(DISTORTION_MODELS)}")
     unknown = [s for s in shape if s not in SHAPE_NAMES]
@@ -410,14 +409,9 @@ def refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[n
     for name in INTRINSIC_NAMES[5:]:
         if name not in free:  # coefficients the model does not estimate are held at zero
             intr0[INTRINSIC_NAMES.index(name)] = 0.0
-    x0 = prob.pack(intr0, poses0, np.zeros(len(views)), shape0)
+    x0 = prob.pack(intr0, poses0, np.zeros(len(views)))
     sol = levenberg_marquardt(prob, x0, intr0, loss_scale, max_iter=max_iter)
-    if shape0 is not None:  # fixed shape parameters keep their given values
-        fixed = [i for i in range(len(SHAPE_NAMES)) if i not in prob.shape_idx]
-        intr_, shape_v, poses, offsets = prob.unpack(sol.x, intr0)
-        shape_v[fixed] = np.asarray(shape0, float)[fixed]
-    else:
-        intr_, shape_v, poses, offsets = prob.unpack(sol.x, intr0)
+    intr_, shape_v, poses, offsets = prob.unpack(sol.x, intr0)
     K, D = _camera(intr_)
     R, dR, t = prob.rotations(poses)
     er = prob._edges(K, D, R, dR, t, shape_v, offsets, jac=False)[0]

@@ -22,6 +22,7 @@ from ..geometry.conic import (
     Ellipse,
     conic_curvature,
     conic_normals,
+    ellipse_perimeter,
     ellipses_from_conics,
     fit_conic,
     fit_conics_algebraic,
@@ -117,7 +118,8 @@ def refine_edge(image: np.ndarray, conic: np.ndarray, spacing: float = 1.0, half
     """Subpixel points of the edge near ``conic`` in a float32 grey ``image``.
 
     Samples one profile per ``spacing`` px of arc (at most ``max_profiles``: the refinement uses
-    150 points of an edge, the conic fit gains little beyond) along the predicted ellipse, fits the blurred
+    at most 700 points of a view, the conic fit gains little beyond) along the predicted ellipse,
+    fits the blurred
     step, rejects profiles with low contrast, too wide a step, an edge outside the window or an
     inconsistent sign, refits the conic, and repeats ``passes`` times. Raises :class:`EdgeError`."""
     img = image if image.dtype == np.float32 else image.astype(np.float32)
@@ -192,9 +194,7 @@ def refine_edges_batch(image: np.ndarray, conics: list[np.ndarray], half_windows
     par, real = ellipses_from_conics(C_all)
     # sample each ellipse: n points per curve, equally spaced in the parametric angle
     cx, cy, a, b, ang = par.T
-    hq = ((a - b) / (a + b)) ** 2
-    perim = np.pi * (a + b) * (1 + 3 * hq / (10 + np.sqrt(4 - 3 * hq)))
-    n = np.clip(perim / spacing, 12, 2000).astype(int)
+    n = np.clip(ellipse_perimeter(a, b) / spacing, 12, 2000).astype(int)
     hw_all = np.asarray(half_windows, float)
     ext_x = np.sqrt((a * np.cos(ang)) ** 2 + (b * np.sin(ang)) ** 2) + hw_all  # the ellipse's bounding box
     ext_y = np.sqrt((a * np.sin(ang)) ** 2 + (b * np.cos(ang)) ** 2) + hw_all
@@ -226,12 +226,7 @@ def refine_edges_batch(image: np.ndarray, conics: list[np.ndarray], half_windows
     ok = ((np.abs(con) >= min_contrast) & (np.sign(con) == sign[gid]) & (np.abs(s0) < hw - 0.25)
           & (wid < max_width) & (rms < 0.25 * np.abs(con) + 1.0))
     enough = np.bincount(gid, ok, len(use)) >= np.maximum(8, 0.6 * n_u)
-    shift = s0
-    if curvature_correction:  # conic_curvature of each point's own conic
-        g2 = 2 * grad
-        fxx, fxy, fyy = 2 * Cp[:, 0, 0], 2 * Cp[:, 0, 1], 2 * Cp[:, 1, 1]
-        num = np.abs(fxx * g2[:, 1] ** 2 - 2 * fxy * g2[:, 0] * g2[:, 1] + fyy * g2[:, 0] ** 2)
-        shift = s0 + 0.5 * wid**2 * num / np.maximum(np.hypot(g2[:, 0], g2[:, 1]) ** 3, 1e-300)
+    shift = s0 + 0.5 * wid**2 * conic_curvature(Cp, P) if curvature_correction else s0
     keep = ok & enough[gid]
     curves = np.flatnonzero(enough)
     if len(curves) == 0:

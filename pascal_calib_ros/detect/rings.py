@@ -17,13 +17,10 @@ import cv2
 import numpy as np
 
 from ..geometry.conic import (
-    ConicFitError,
     Ellipse,
     ellipses_from_conics,
-    fit_conic_algebraic,
     fit_conics_algebraic,
     group_medians,
-    sampson_distance,
     sampson_distances,
 )
 from ..targets import Target
@@ -83,20 +80,6 @@ class _Blob:
     holes: list[tuple[np.ndarray, Ellipse]]
     touches_border: bool
     fit_residual: float
-
-
-def _ellipse_of(contour: np.ndarray) -> tuple[Ellipse, float] | None:
-    if len(contour) < 8:
-        return None
-    try:
-        C = fit_conic_algebraic(contour)
-        e = Ellipse.from_conic(C)
-    except (ConicFitError, np.linalg.LinAlgError):
-        return None
-    if not np.isfinite([e.a, e.b, e.cx, e.cy]).all() or min(e.a, e.b) <= 0:
-        return None
-    res = float(np.median(np.abs(sampson_distance(C, contour))))
-    return e, res
 
 
 def _to_float(image: np.ndarray) -> np.ndarray:
@@ -205,8 +188,8 @@ def _blobs_from_mask(mask: np.ndarray, scale: int, w: int, h: int, params: Detec
 
 
 def _ellipses_of(contours: list[np.ndarray]) -> list[tuple[Ellipse, float] | None]:
-    """:func:`_ellipse_of` for many contours: one batched algebraic fit, the fitted ellipse and
-    the median |Sampson distance| of its contour (None where no ellipse fits)."""
+    """Ellipses of many contours by one batched algebraic fit: the fitted ellipse and the median
+    |Sampson distance| of its contour (None where no ellipse fits or the contour is too short)."""
     if not contours:
         return []
     n = len(contours)

@@ -154,8 +154,9 @@ def sampson_distances(C: np.ndarray, pts: np.ndarray, owner: np.ndarray) -> np.n
 
 
 def ellipses_from_conics(C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:meth:`Ellipse.from_conic` for (G, 3, 3) conics: parameters (G, 5) = (cx, cy, a, b, angle)
-    and a mask of real ellipses."""
+    """:meth:`Ellipse.from_conic` for (G, 3, 3) conics (G may be 0): parameters (G, 5) =
+    (cx, cy, a, b, angle) and a mask of real ellipses."""
+    C = np.asarray(C, float).reshape(-1, 3, 3)
     C = C / np.maximum(np.linalg.norm(C, axis=(1, 2)), 1e-300)[:, None, None]
     C = C * np.where(C[:, 0, 0] + C[:, 1, 1] < 0, -1.0, 1.0)[:, None, None]
     A = C[:, :2, :2]
@@ -269,9 +270,13 @@ class Ellipse:
 
     @property
     def perimeter(self) -> float:
-        a, b = self.a, self.b
-        h = ((a - b) / (a + b)) ** 2
-        return float(np.pi * (a + b) * (1 + 3 * h / (10 + np.sqrt(4 - 3 * h))))
+        return float(ellipse_perimeter(self.a, self.b))
+
+
+def ellipse_perimeter(a: np.ndarray | float, b: np.ndarray | float) -> np.ndarray:
+    """Ramanujan's second approximation of an ellipse's perimeter (elementwise)."""
+    h = ((np.asarray(a) - b) / (np.asarray(a) + b)) ** 2
+    return np.pi * (np.asarray(a) + b) * (1 + 3 * h / (10 + np.sqrt(4 - 3 * h)))
 
 
 def conic_normals(C: np.ndarray, pts: np.ndarray) -> np.ndarray:
@@ -283,11 +288,12 @@ def conic_normals(C: np.ndarray, pts: np.ndarray) -> np.ndarray:
 
 def conic_curvature(C: np.ndarray, pts: np.ndarray) -> np.ndarray:
     """Curvature (1/px) of the conic at points lying on it: |grad^T adj-Hessian| formula
-    k = |f_xx f_y^2 - 2 f_xy f_x f_y + f_yy f_x^2| / |grad f|^3 for f(x, y) = x^T C x."""
+    k = |f_xx f_y^2 - 2 f_xy f_x f_y + f_yy f_x^2| / |grad f|^3 for f(x, y) = x^T C x.
+    C is one conic (3, 3) or one per point (N, 3, 3)."""
     X = np.concatenate([pts, np.ones((len(pts), 1))], 1)
-    g = 2 * (X @ C)[:, :2]
+    g = 2 * (np.einsum("nj,njk->nk", X, C) if C.ndim == 3 else X @ C)[:, :2]
     fx, fy = g[:, 0], g[:, 1]
-    fxx, fxy, fyy = 2 * C[0, 0], 2 * C[0, 1], 2 * C[1, 1]
+    fxx, fxy, fyy = 2 * C[..., 0, 0], 2 * C[..., 0, 1], 2 * C[..., 1, 1]
     num = np.abs(fxx * fy**2 - 2 * fxy * fx * fy + fyy * fx**2)
     return num / np.maximum(np.hypot(fx, fy) ** 3, 1e-300)
 

@@ -40,13 +40,12 @@ def per_circle_rms(res: CalibrationResult) -> dict[str, float]:
     name (``ring/outer``, ``disc_grid[2,5]`` ...) or its index; worst first."""
     if not res.edge_circles:
         return {}
-    ids = np.concatenate(res.edge_circles)
+    ids = np.concatenate(res.edge_circles).astype(int)
     r = np.concatenate(res.edge_residuals)
-    out = {}
-    for c in np.unique(ids):
-        key = res.circle_names[c] if c < len(res.circle_names) else str(int(c))
-        out[key] = float(np.sqrt(np.mean(r[ids == c] ** 2)))
-    return dict(sorted(out.items(), key=lambda kv: -kv[1]))
+    count = np.bincount(ids)
+    rms = np.sqrt(np.bincount(ids, r * r) / np.maximum(count, 1))
+    names = [res.circle_names[c] if c < len(res.circle_names) else str(c) for c in range(len(count))]
+    return {names[c]: float(rms[c]) for c in np.argsort(-rms) if count[c]}
 
 
 def report_numbers(res: CalibrationResult, dets: list[Detection]) -> dict[str, Any]:

@@ -25,7 +25,7 @@ from ..detect.rings import DetectionParams, detect_target
 from ..geometry.camera import Camera, calibration_errors
 from ..targets import resolve_target
 from .render import render_view
-from .session import SessionSpec, session_views
+from .session import SessionSpec, render_session_views, session_views
 
 
 @dataclass(frozen=True)
@@ -176,10 +176,8 @@ def target_shape(out: Path, views: int, seed: int) -> list[dict[str, Any]]:
     for label, ratio, wx, wy in SHAPE_SCENARIOS:
         spec = SessionSpec(width=1024, height=768, focal=620, k1=-0.43, views=max(views, 20), blur=1.0, seed=seed,
                            size_range=(0.45, 0.9), tilt_range=(10, 45), pitch_ratio=ratio, warp_x=wx, warp_y=wy)
-        cam = spec.camera()
-        shape = spec.sheet_shape(target)
-        imgs = [render_view(target, cam, pose, sens, shape).image for _, pose, sens in session_views(target, spec)]
-        dets = [detect_target(im, target) for im in imgs]
+        cam, views_ = render_session_views(target, spec)  # rendered on the bent, scaled sheet
+        dets = [detect_target(v.image, target) for v in views_]
         for estimate in ("", "warp", "all"):
             opts = CalibrationOptions(target_shape=SHAPE_CHOICES[estimate])
             model = f"target shape: {estimate}" if estimate else "flat, nominal"
