@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 export AMENT_PREFIX_PATH := $(abspath $(VENV))
 
-.PHONY: demo test lint typecheck unit bench study experiments clean venv
+.PHONY: demo test lint typecheck unit kernels bench study experiments clean venv
 
 venv: $(STAMP)
 
@@ -17,21 +17,27 @@ $(STAMP): requirements.txt setup.py setup.cfg package.xml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	tools/in_netns $(PY) -m pascal_calib_ros.demo
+	tools/in_netns $(PY) tools/demo.py
 
-test: lint typecheck unit
+test: lint typecheck unit kernels
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check pascal_calib_ros test
+	$(VENV)/bin/ruff check pascal_calib_ros test tools
 
 typecheck: $(STAMP)
-	$(VENV)/bin/mypy pascal_calib_ros --exclude 'pascal_calib_ros/ros/' 
+	$(VENV)/bin/mypy pascal_calib_ros
 
 unit: $(STAMP)
 	tools/in_netns $(PY) -m pytest -q test
 
+# the numerical tests again under every OpenBLAS kernel this CPU runs (results must not hang on rounding)
+kernels: $(STAMP)
+	tools/test_kernels $(PY)
+
+# detection and calibration speed, then the node's throughput across processes (5 MP at 10 Hz)
 bench: $(STAMP)
-	tools/in_netns $(VENV)/bin/pascal-calib bench --node
+	$(VENV)/bin/pascal-calib bench
+	tools/in_netns $(PY) tools/bench_node.py
 
 experiments: $(STAMP)
 	for e in methods layouts literal board reconstruct; do $(VENV)/bin/pascal-calib experiment $$e --out docs/figures || exit 1; done

@@ -16,7 +16,8 @@ setup(
         ("share/" + package_name + "/config", glob("config/*.yaml")),
         ("share/" + package_name + "/config/targets", glob("config/targets/*.yaml")),
     ],
-    install_requires=["setuptools", "numpy", "scipy", "opencv-python-headless", "pyyaml"],
+    # pip installs; a ROS install gets these from package.xml through rosdep (rosbags: see README)
+    install_requires=["setuptools", "numpy", "scipy", "opencv-python-headless", "pyyaml", "matplotlib", "rosbags"],
     zip_safe=True,
     maintainer="pascal_calib_ros maintainers",
     maintainer_email="maintainers@pascal-calib.invalid",

@@ -18,6 +18,8 @@ import numpy as np
 from .calibrate.pipeline import METHODS, CalibrationError, CalibrationOptions, CalibrationResult, calibrate
 from .calibrate.refine import DISTORTION_MODELS, SHAPE_CHOICES
 from .detect.rings import Detection, DetectionParams, detect_target
+from .geometry.camera import rectified_projection
+from .geometry.lens import lens_model
 from .io.camera_yaml import CameraInfoData, write_camera_yaml
 from .io.images import ImageReadError, expand_image_args, read_grey
 from .targets import Target, TargetError, resolve_target
@@ -79,7 +81,8 @@ def format_summary(res: CalibrationResult) -> str:
         if np.isfinite(res.degeneracy_ratio) else "degeneracy ratio: n/a",
         f"fx = {pm('fx', K[0, 0])}   fy = {pm('fy', K[1, 1])}",
         f"cx = {pm('cx', K[0, 2])}   cy = {pm('cy', K[1, 2])}   skew = {K[0, 1]:.4f}",
-        "D (k1 k2 p1 p2 k3) = " + "  ".join(pm(n, v) for n, v in zip(("k1", "k2", "p1", "p2", "k3"), D, strict=True)),
+        f"D {res.model} ({' '.join(res.camera().lens.coefficients)}) = "
+        + "  ".join(pm(n, v) for n, v in zip(res.camera().lens.coefficients, D, strict=True)),
     ]
     if res.shape:
         desc = {"pitch_ratio": ("y/x pitch ratio - 1", 100, "%"), "warp_x": ("warp along x", 1000, "mm"),
@@ -122,7 +125,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     if not paths:
         print("error: no images given", file=sys.stderr)
         return EXIT_INPUT
-    params = DetectionParams(gamma=args.gamma, max_blur=args.max_blur)
+    params = DetectionParams.for_lens(lens_model(args.distortion).wide, gamma=args.gamma, max_blur=args.max_blur)
     t0 = time.perf_counter()
     dets = detect_files(paths, args.target, params, progress=sys.stderr.isatty())
     t_detect = time.perf_counter() - t0
@@ -142,13 +145,78 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     t_cal = time.perf_counter() - t1
     print(format_summary(res))
     print(f"time: detection {t_detect:.2f} s ({len(paths)} images), calibration {t_cal:.2f} s")
-    info = CameraInfoData(res.width, res.height, args.camera_name, res.K, res.D, "plumb_bob")
+    info = CameraInfoData(res.width, res.height, args.camera_name, res.K, res.D, res.model,
+                          P=rectified_projection(res.camera()))
     out = write_camera_yaml(args.output, info)
     print(f"wrote {out}")
     if args.report:
         from .io.report import write_report
 
         png, js = write_report(res, dets, args.report)
+        print(f"wrote {png} and {js}")
+    return EXIT_OK
+
+
+def cmd_handeye(args: argparse.Namespace) -> int:
+    """Joint intrinsic + hand-eye calibration from images and POSES.yaml."""
+    from .calibrate.handeye import HandEyeError, HandEyeOptions, calibrate_hand_eye
+    from .io.hand_eye_yaml import PosesYamlError, read_poses_yaml, write_hand_eye_yaml
+
+    target = _target_or_none(args.target)
+    if target is None:
+        return EXIT_INPUT
+    try:
+        frame_id, child_id, poses = read_poses_yaml(args.poses)
+    except PosesYamlError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return EXIT_INPUT
+    paths = expand_image_args(args.images)
+    if not paths:
+        print("error: no images given", file=sys.stderr)
+        return EXIT_INPUT
+    missing = [p.name for p in paths if p.name not in poses]
+    if len(missing) == len(paths):
+        print(f"error: no image has a pose in {args.poses} (images are matched by file name, e.g. {paths[0].name})",
+              file=sys.stderr)
+        return EXIT_INPUT
+    params = DetectionParams.for_lens(lens_model(args.distortion).wide, gamma=args.gamma, max_blur=args.max_blur)
+    dets = detect_files(paths, args.target, params, progress=sys.stderr.isatty())
+    robot = [poses.get(p.name) for p in paths]
+    opts = CalibrationOptions(method=args.method or "", distortion=args.distortion, zero_skew=not args.skew)
+    he = HandEyeOptions(args.mode, args.robot_sigma_mm, args.robot_sigma_deg, not args.fixed_robot_sigma)
+    t0 = time.perf_counter()
+    try:
+        res = calibrate_hand_eye(dets, robot, target, args.mode, opts, he)
+    except (HandEyeError, CalibrationError) as e:
+        for d, r in zip(dets, robot, strict=True):
+            if r is None:
+                print(f"  rejected  {d.name}  no pose in {Path(args.poses).name}")
+            elif not d.ok:
+                print(f"  rejected  {d.name}  {d.reason}")
+        print(f"error: hand-eye calibration failed: {e}", file=sys.stderr)
+        print("no calibration written", file=sys.stderr)
+        return EXIT_CALIB
+    print(format_summary(res.calibration))
+    print(res.summary())
+    print(f"time: calibration {time.perf_counter() - t0:.2f} s")
+    cal = res.calibration
+    info = CameraInfoData(cal.width, cal.height, args.camera_name, cal.K, cal.D, cal.model,
+                          P=rectified_projection(cal.camera()))
+    out = write_camera_yaml(args.output, info)
+    print(f"wrote {out}")
+    parent = child_id if args.mode == "eye_in_hand" else frame_id
+    target_frame = frame_id if args.mode == "eye_in_hand" else child_id
+    he_out = Path(args.hand_eye_out) if args.hand_eye_out else Path(args.output).parent / "hand_eye.yaml"
+    write_hand_eye_yaml(he_out, res, parent, args.camera_frame, target_frame)
+    print(f"wrote {he_out}")
+    t, q = res.hand_eye.translation, res.hand_eye.quat
+    print("publish it with:\n  ros2 run tf2_ros static_transform_publisher "
+          f"--x {t[0]:.6f} --y {t[1]:.6f} --z {t[2]:.6f} --qx {q[0]:.7f} --qy {q[1]:.7f} --qz {q[2]:.7f} "
+          f"--qw {q[3]:.7f} --frame-id {parent} --child-frame-id {args.camera_frame}")
+    if args.report:
+        from .io.report import write_report
+
+        png, js = write_report(cal, dets, args.report)
         print(f"wrote {png} and {js}")
     return EXIT_OK
 
@@ -164,7 +232,9 @@ def cmd_render(args: argparse.Namespace) -> int:
                        gamma=args.gamma, noise=args.noise, jpeg=args.jpeg, seed=args.seed,
                        cut_views=args.cut_views, empty_views=args.empty_views, defocused_views=args.defocused_views,
                        size_range=(args.min_size, args.max_size), pitch_ratio=args.pitch_ratio,
-                       warp_x=args.warp_x / 1000, warp_y=args.warp_y / 1000)
+                       warp_x=args.warp_x / 1000, warp_y=args.warp_y / 1000, lens=args.lens,
+                       dist=tuple(float(v) for v in args.dist.split(",")) if args.dist else (),
+                       pixel_range=(0.05, 0.95) if args.lens == "equidistant" else (0.2, 0.8))
     paths = render_session(target, spec, Path(args.out), progress=sys.stderr.isatty())
     print(f"wrote {len(paths)} images and ground truth to {args.out}")
     return EXIT_OK
@@ -174,22 +244,17 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from .sim.bench import run_bench
 
     result: dict[str, Any] = dict(run_bench(quick=args.quick, print_table=not args.json))
-    if args.node:
-        from .ros.throughput import run_load
-
-        load = run_load(args.node_seconds, rate=10.0, width=2456, height=2058)
-        result["node"] = {"size": "2456x2058", "rate_hz": 10.0, "seconds": load.seconds, "published": load.published,
-                          "received": load.received, "dropped": load.dropped,
-                          "processed_per_s": load.processed_per_s,
-                          "rss_mb_start": load.rss_mb[0][1], "rss_mb_end": load.rss_mb[-1][1]}
-        if not args.json:
-            print("node throughput (5 MP at 10 Hz, across processes): " + load.summary())
     if args.json:
         print(json.dumps(result))
     return EXIT_OK
 
 
 def cmd_study(args: argparse.Namespace) -> int:
+    if args.name == "handeye":
+        from .sim.handeye_study import run_handeye_study
+
+        run_handeye_study(Path(args.out), views=args.views or 20, seed=args.seed, opencv4_python=args.opencv4_python)
+        return EXIT_OK
     from .sim.study import run_study
 
     run_study(args.name, Path(args.out), views=args.views, seed=args.seed)
@@ -197,18 +262,27 @@ def cmd_study(args: argparse.Namespace) -> int:
 
 
 def cmd_bag(args: argparse.Namespace) -> int:
-    from .io.bags import BagError, write_image_bag
+    from .io.bags import BagError, write_arm_bag, write_image_bag
 
     paths = expand_image_args(args.images)
     if not paths:
         print("error: no images given", file=sys.stderr)
         return EXIT_INPUT
+    kind = "CompressedImage" if args.compressed else "Image"
     try:
+        if args.poses:
+            out = write_arm_bag(args.out, paths, args.poses, args.topic, args.pose_topic, args.storage,
+                                args.compressed, args.rate, args.hold, args.pose_rate, args.frame_id,
+                                args.pose_type)
+            pose_kind = "PoseStamped" if args.pose_type == "pose" else "TransformStamped"
+            print(f"wrote an arm session of {len(paths)} pose(s) to {out} ({args.storage}): sensor_msgs/{kind} on "
+                  f"{args.topic} ({args.rate:g} Hz, {args.hold:g} s per pose), geometry_msgs/{pose_kind} on "
+                  f"{args.pose_topic} ({args.pose_rate:g} Hz and at every frame)")
+            return EXIT_OK
         out = write_image_bag(args.out, paths, args.topic, args.storage, args.compressed, args.rate, args.frame_id)
     except (BagError, ImageReadError) as e:
         print(f"error: {e}", file=sys.stderr)
         return EXIT_INPUT
-    kind = "CompressedImage" if args.compressed else "Image"
     print(f"wrote {len(paths)} sensor_msgs/{kind} on {args.topic} to {out} ({args.storage})")
     return EXIT_OK
 
@@ -256,12 +330,36 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("images", nargs="+", help="image files or folders")
     c.set_defaults(func=cmd_calibrate)
 
+    h = sub.add_parser("handeye", help="intrinsics + hand-eye transform from images and robot poses (POSES.yaml)")
+    h.add_argument("--target", required=True, help="target YAML file or packaged name")
+    h.add_argument("--poses", required=True, help="POSES.yaml: the tool pose in the base frame per image")
+    h.add_argument("--mode", required=True, choices=("eye_in_hand", "eye_to_hand"))
+    h.add_argument("-o", "--output", required=True, help="camera YAML path")
+    h.add_argument("--hand-eye-out", default="", help="HAND_EYE.yaml path (default: hand_eye.yaml beside -o)")
+    h.add_argument("--camera-frame", default="camera_optical_frame")
+    h.add_argument("--camera-name", default="camera")
+    h.add_argument("--method", choices=METHODS, help="default: the target's natural method")
+    h.add_argument("--distortion", default="plumb_bob", choices=sorted(DISTORTION_MODELS))
+    h.add_argument("--skew", action="store_true", help="estimate skew (default: zero skew)")
+    h.add_argument("--gamma", type=float, default=1.0, help="linearise with this display gamma before edges")
+    h.add_argument("--max-blur", type=float, default=4.0, help="reject views whose edges are wider (px)")
+    h.add_argument("--robot-sigma-mm", type=float, default=0.1, help="the arm's pose accuracy per axis (start)")
+    h.add_argument("--robot-sigma-deg", type=float, default=0.01)
+    h.add_argument("--fixed-robot-sigma", action="store_true", help="do not estimate the arm's accuracy")
+    h.add_argument("--report", metavar="DIR", help="write report.png and report.json into DIR")
+    h.add_argument("images", nargs="+", help="image files or folders")
+    h.set_defaults(func=cmd_handeye)
+
     r = sub.add_parser("render", help="render a synthetic session with ground truth")
     r.add_argument("--target", default="ring_a4")
     r.add_argument("--out", required=True)
     r.add_argument("--size", default="800x600")
     r.add_argument("--focal", type=float, default=0.0, help="px (default: image width)")
     r.add_argument("--k1", type=float, default=0.0)
+    r.add_argument("--lens", default="plumb_bob", choices=("plumb_bob", "rational_polynomial", "equidistant"),
+                   help="lens model of the rendered camera (with --dist)")
+    r.add_argument("--dist", default="", help="its coefficients, comma-separated, in ROS order (e.g. fisheye: "
+                   "--lens equidistant --focal 300 --dist 0.02,-0.005,0.001,-0.0002)")
     r.add_argument("--views", type=int, default=12)
     r.add_argument("--blur", type=float, default=1.0)
     r.add_argument("--gamma", type=float, default=2.2)
@@ -285,15 +383,20 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--compressed", action="store_true", help="store the files' bytes as CompressedImage")
     g.add_argument("--rate", type=float, default=2.0, help="message rate for the recorded timestamps (Hz)")
     g.add_argument("--frame-id", default="camera")
+    g.add_argument("--poses", help="POSES.yaml: an arm session; each image is shown for --hold s at --rate Hz "
+                                   "with its tool pose published at --pose-rate Hz and at every frame")
+    g.add_argument("--pose-topic", default="/tool_pose")
+    g.add_argument("--pose-type", choices=["pose", "transform"], default="pose",
+                   help="geometry_msgs/PoseStamped or TransformStamped")
+    g.add_argument("--hold", type=float, default=1.0, help="with --poses: seconds the arm rests at each pose")
+    g.add_argument("--pose-rate", type=float, default=20.0, help="with --poses: pose messages per second")
     g.add_argument("images", nargs="+")
     g.set_defaults(func=cmd_bag)
 
-    b = sub.add_parser("bench", help="timings: detection vs cv2.Canny, calibration vs view count")
+    b = sub.add_parser("bench", help="timings: detection of every shipped target at 800x600, 1920x1080 and "
+                                     "2456x2058 (and vs cv2.Canny), calibration vs view count")
     b.add_argument("--json", action="store_true")
     b.add_argument("--quick", action="store_true", help="fewer repetitions")
-    b.add_argument("--node", action="store_true",
-                   help="also measure the calibration node across processes (run under tools/in_netns)")
-    b.add_argument("--node-seconds", type=float, default=30.0)
     b.set_defaults(func=cmd_bench)
 
     t = sub.add_parser("target", help="printable target at exact scale (.pdf, .svg, .png)")
@@ -310,9 +413,10 @@ def build_parser() -> argparse.ArgumentParser:
     e.set_defaults(func=cmd_experiment)
 
     s = sub.add_parser("study", help="accuracy studies against ground truth (see README)")
-    s.add_argument("name", choices=["accuracy", "edge-bias", "grids", "target-shape"])
+    s.add_argument("name", choices=["accuracy", "edge-bias", "grids", "target-shape", "lenses", "handeye"])
+    s.add_argument("--opencv4-python", default="", help="handeye: a Python with OpenCV 4.x for calibrateHandEye")
     s.add_argument("--out", default="out/study")
-    s.add_argument("--views", type=int, default=15)
+    s.add_argument("--views", type=int, default=None, help="default: 15 (lenses: 20 per lens)")
     s.add_argument("--seed", type=int, default=1)
     s.set_defaults(func=cmd_study)
     return ap

@@ -7,6 +7,7 @@ A target is a flat sheet carrying features: ``ring`` (black annulus, two concent
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -15,8 +16,10 @@ from typing import Any
 import numpy as np
 import yaml
 
+from .errors import PascalCalibError
 
-class TargetError(ValueError):
+
+class TargetError(PascalCalibError):
     """The target description is invalid; the message says what to fix."""
 
 
@@ -348,17 +351,42 @@ def load_target(path: str | Path) -> Target:
     return parse_target(data, str(p))
 
 
+PACKAGE = "pascal_calib_ros"
+
+
+def _config_dir_candidates() -> list[Path]:
+    """Where ``config/`` may be, in order: the source tree (development: this module sits next to
+    ``package.xml``), the package's share directory from the ament index (``colcon build`` /
+    ``apt`` install: ``<prefix>/share/pascal_calib_ros/config``), ``sys.prefix/share`` (pip
+    install of the wheel into a venv)."""
+    here = Path(__file__).resolve().parent
+    candidates: list[Path] = []
+    if (here.parent / "package.xml").is_file():
+        candidates.append(here.parent / "config")
+    try:  # lazily: the pure-Python core must work without ROS
+        from ament_index_python.packages import get_package_share_directory
+
+        candidates.append(Path(get_package_share_directory(PACKAGE)) / "config")
+    except (ImportError, LookupError, OSError, ValueError):  # no ament, no AMENT_PREFIX_PATH, not indexed
+        pass
+    candidates.append(Path(sys.prefix) / "share" / PACKAGE / "config")
+    return candidates
+
+
+def packaged_config_dir() -> Path:
+    """``config/`` shipped with the package (``calibration_node.yaml``, ``targets/``)."""
+    candidates = _config_dir_candidates()
+    for c in candidates:
+        if (c / "targets").is_dir():
+            return c
+    raise TargetError("packaged target files not found (looked in "
+                      + ", ".join(str(c / "targets") for c in candidates)
+                      + "; source install/setup.bash of the workspace, or set AMENT_PREFIX_PATH)")
+
+
 def packaged_targets_dir() -> Path:
     """``config/targets`` shipped with the package (source tree or installed share dir)."""
-    here = Path(__file__).resolve().parent
-    candidates = [here.parent / "config" / "targets", here / "config" / "targets"]
-    import sys
-
-    candidates.append(Path(sys.prefix) / "share" / "pascal_calib_ros" / "config" / "targets")
-    for c in candidates:
-        if c.is_dir():
-            return c
-    raise TargetError("packaged target files not found")
+    return packaged_config_dir() / "targets"
 
 
 def resolve_target(name_or_path: str) -> Target:

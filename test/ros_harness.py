@@ -1,15 +1,19 @@
-"""Test-side helpers for the ROS end-to-end tests (processes and clients live in the package)."""
+"""Test-side helpers for the ROS end-to-end tests (node processes and the client node come from
+tools/node_processes.py, shared with the demo and the load tests; not part of the package)."""
 
 from __future__ import annotations
 
 import itertools
 import os
 import random
+import sys
 from pathlib import Path
 
 import pytest
 
-from pascal_calib_ros.ros.processes import NodeProcess, RosClient
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
+
+from node_processes import NodeProcess, RosClient
 
 __all__ = ["NodeProcess", "RosClient", "camera_info_subscription", "latest_status", "next_domain_id",
            "require_netns", "status_subscription"]

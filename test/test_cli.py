@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from pascal_calib_ros.demo import compare
+from pascal_calib_ros.sim.ground_truth import compare
 
 
 def run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:

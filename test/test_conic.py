@@ -95,3 +95,14 @@ def test_batched_fits_match_one_at_a_time() -> None:
         assert np.allclose(par[k, :4], [e.cx, e.cy, e.a, e.b], atol=1e-8)
         assert np.isclose(med[k], np.median(np.abs(sampson_distance(ref, sets[k]))))
     assert np.isnan(med[-1])
+
+
+def test_line_conic_intersection_has_no_cancellation() -> None:
+    """Roots of very different size (a line nearly through the conic's far side): the small root
+    keeps its relative accuracy (the textbook formula loses it to cancellation)."""
+    C = Ellipse(0.0, 0.0, 1.0, 1.0, 0.0).to_conic()
+    for y in (0.999999, 1 - 1e-9):
+        line = np.array([0.0, 1.0, -y])
+        for r in line_conic_intersection(line, C):
+            r = r / r[2]
+            assert abs(r[0] ** 2 + r[1] ** 2 - 1) < 1e-13

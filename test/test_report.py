@@ -1,10 +1,11 @@
 import json
 from pathlib import Path
 
+from pascal_calib_ros.calibrate.diagnostics import distortion_field
 from pascal_calib_ros.calibrate.pipeline import calibrate
 from pascal_calib_ros.geometry.camera import Camera
 from pascal_calib_ros.io.printable import write_printable
-from pascal_calib_ros.io.report import distortion_field, write_report
+from pascal_calib_ros.io.report import write_report
 from pascal_calib_ros.targets import Target, resolve_target
 
 

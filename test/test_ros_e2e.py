@@ -6,8 +6,10 @@ from __future__ import annotations
 
 import json
 import signal
+import time
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 import yaml
@@ -22,6 +24,7 @@ from ros_harness import (
 )
 
 from pascal_calib_ros.io.bags import write_image_bag
+from pascal_calib_ros.ros.replay_node import output_topic
 from pascal_calib_ros.sim.session import SessionSpec, render_session
 from pascal_calib_ros.targets import resolve_target
 
@@ -40,11 +43,42 @@ def _truth(session: Path) -> dict:
     return json.loads((session / "session.json").read_text())
 
 
-def _check_k(k: list[float] | np.ndarray, truth: dict) -> None:
+def _check_k(k: list[float] | np.ndarray, truth: dict, rel: float = 1e-3, pp_px: float = 1.5) -> None:
     K = np.asarray(k, float).reshape(3, 3)
     Kt = np.array(truth["K"])
-    assert abs(K[0, 0] / Kt[0, 0] - 1) < 1e-3 and abs(K[1, 1] / Kt[1, 1] - 1) < 1e-3, K
-    assert np.hypot(K[0, 2] - Kt[0, 2], K[1, 2] - Kt[1, 2]) < 1.5, K
+    assert abs(K[0, 0] / Kt[0, 0] - 1) < rel and abs(K[1, 1] / Kt[1, 1] - 1) < rel, K
+    assert np.hypot(K[0, 2] - Kt[0, 2], K[1, 2] - Kt[1, 2]) < pp_px, K
+
+
+# A 5 MP session of the experiment board. Its detection takes seconds per frame today (about
+# 3.5 s on the 2-core CI machine), so the session is small and rendered at half size, then
+# upscaled 2x to 2456x2058 (rendering at full size costs ~8 s per view): the frames have the
+# size, bytes and content of a 5 MP session; the truth is K scaled by 2 (x' = 2 x + 0.5).
+BOARD_VIEWS = 5
+
+
+@pytest.fixture(scope="module")
+def board_5mp(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("board_5mp")
+    spec = SessionSpec(width=1228, height=1029, views=BOARD_VIEWS, k1=-0.1, seed=31, size_range=(0.5, 0.8),
+                       empty_views=1)
+    render_session(resolve_target("pascal_board_a3"), spec, out)
+    truth = _truth(out)
+    for name in truth["images"]:
+        img = cv2.imread(str(out / name), cv2.IMREAD_UNCHANGED)
+        cv2.imwrite(str(out / name), cv2.resize(img, (2456, 2058), interpolation=cv2.INTER_CUBIC))
+    K = np.array(truth["K"])
+    K[:2] *= 2.0
+    K[:2, 2] += 0.5
+    truth.update(K=K.tolist(), width=2456, height=2058)
+    (out / "session.json").write_text(json.dumps(truth, indent=1))
+    return out
+
+
+def _idle(kv: dict[str, str]) -> bool:
+    """The detector has finished with every frame the node received (none pending or running)."""
+    n = int(kv.get("frames_received", 0))
+    return n > 0 and int(kv["frames_examined"]) + int(kv["frames_dropped"]) == n
 
 
 
@@ -154,7 +188,8 @@ def test_sqlite3_bag(tmp_path: Path, session: Path) -> None:
 
 def test_mcap_bag_compressed_transport(tmp_path: Path, session: Path) -> None:
     bag = write_image_bag(tmp_path / "bag", sorted(session.glob("*.png")), "/cam/image", "mcap", compressed=True)
-    _run_session(tmp_path, bag, {"transport": "compressed"}, {"rate": 0.0}, _truth(session))
+    _run_session(tmp_path, bag, {"transport": "compressed"}, {"mode": "timed", "rate": 0.0}, _truth(session))
+    assert "on /image/compressed (reliable); timed: recorded timing" in (tmp_path / "rep.log").read_text()
 
 
 def test_best_effort_publisher_with_auto_qos(tmp_path: Path, session: Path) -> None:
@@ -162,8 +197,11 @@ def test_best_effort_publisher_with_auto_qos(tmp_path: Path, session: Path) -> N
 
 
 def test_folder_compressed_transport(tmp_path: Path, session: Path) -> None:
+    # a topic already ending in /compressed is used as is (not .../compressed/compressed)
     _run_session(tmp_path, session, {"transport": "compressed", "auto_calibrate": True},
-                 {"transport": "compressed"}, _truth(session), call=False)
+                 {"transport": "compressed", "topic": "/image/compressed"}, _truth(session), call=False)
+    log = (tmp_path / "rep.log").read_text()
+    assert "as sensor_msgs/CompressedImage on /image/compressed (reliable); lock-step" in log, log
 
 
 def test_invalid_parameters_refuse_to_start(tmp_path: Path) -> None:
@@ -210,3 +248,126 @@ def test_grid_target_with_estimated_shape(tmp_path: Path) -> None:
     bad = NodeProcess("calibration_node", {"target": "ring_a4", "target_shape": "warp"}, dom, tmp_path / "bad.log")
     assert bad.wait(30) == 2
     assert "target_shape needs a grid or checkerboard target" in bad.log()
+
+
+def test_output_topic_of_replay() -> None:
+    assert output_topic("image", False) == ("image", "")
+    assert output_topic("image", True) == ("image/compressed", "")
+    assert output_topic("/cam/image/compressed", True) == ("/cam/image/compressed", "")  # not appended twice
+    assert output_topic("/cam/image/", True) == ("/cam/image/compressed", "")
+    topic, warning = output_topic("/cam/image/compressed", False)
+    assert topic == "/cam/image/compressed" and "raw sensor_msgs/Image" in warning
+
+
+def test_5mp_board_session_in_lockstep_uses_every_frame(tmp_path: Path, board_5mp: Path) -> None:
+    """A 5 MP board session replayed at full speed (lock-step, the default): whatever the
+    detector's speed, every frame is examined, none dropped, every view with the board is
+    collected and the calibration succeeds."""
+    truth = _truth(board_5mp)
+    n_frames = len(truth["images"])  # BOARD_VIEWS with the board + 1 empty
+    dom = next_domain_id()
+    cal = NodeProcess("calibration_node", {"target": "pascal_board_a3", "method": "ring", "min_views": BOARD_VIEWS,
+                                           "min_view_distance": 0.0, "calibration_file": str(tmp_path / "c.yaml")},
+                      dom, tmp_path / "cal.log")
+    rep = NodeProcess("replay_node", {"source": str(board_5mp), "exit_when_done": True}, dom, tmp_path / "rep.log")
+    client = RosClient(dom)
+    t0 = time.monotonic()
+    try:
+        status = status_subscription(client)
+        assert client.spin_until(lambda: rep.proc.poll() is not None, 150), f"{latest_status(status)}\n{rep.log()}"
+        assert rep.wait(1) == 0, rep.log()
+        assert client.spin_until(lambda: latest_status(status).get("frames_examined") == str(n_frames), 5)
+        kv = latest_status(status)
+        assert kv["frames_received"] == str(n_frames) and kv["frames_dropped"] == "0", kv
+        assert kv["views_accepted"] == str(BOARD_VIEWS) and kv["views_rejected"] == "1", kv
+        assert not kv["frames_dropped_note"], kv
+        log = rep.log()
+        assert "lock-step" in log and f"replay finished: {n_frames} message(s) on /image, {n_frames} examined" in log
+        r = client.call_trigger("/pascal_calib/calibrate")
+        assert r.success, r.message
+        assert "method=ring" in r.message and f"views={BOARD_VIEWS}/{BOARD_VIEWS}" in r.message, r.message
+        got = camera_info_subscription(client)
+        assert client.spin_until(lambda: bool(got), 10), cal.log()
+        _check_k(got[-1].k, truth, rel=5e-3, pp_px=8.0)
+        print(f"5 MP lock-step session: {n_frames} frames, {time.monotonic() - t0:.1f} s")
+    finally:
+        client.close()
+        rep.stop()
+        assert cal.stop() == 0, cal.log()
+
+
+def test_timed_replay_too_fast_reports_dropped_frames(tmp_path: Path, board_5mp: Path) -> None:
+    """The same session looped in timed mode far faster than the node: frames are dropped, and
+    ~/calibrate and ~/status say so and what to do instead of blaming the motion. The files'
+    bytes are sent as they are (compressed transport): the replay only reads files while the node
+    decodes 5 MP PNGs and detects, so it outruns the node however fast the detector becomes."""
+    dom = next_domain_id()
+    # min_views above the session's distinct views: the looped views never make it ready
+    cal = NodeProcess("calibration_node", {"target": "pascal_board_a3", "method": "ring", "min_views": BOARD_VIEWS + 3,
+                                           "transport": "compressed"}, dom, tmp_path / "cal.log")
+    rep = NodeProcess("replay_node", {"source": str(board_5mp), "mode": "timed", "rate": 100.0, "loop": True,
+                                      "transport": "compressed", "wait_for_subscribers": 1}, dom, tmp_path / "rep.log")
+    client = RosClient(dom)
+    try:
+        status = status_subscription(client)
+        assert client.spin_until(lambda: int(latest_status(status).get("frames_received", 0)) >= 20, 60), (
+            f"{latest_status(status)}\n{rep.log()}")
+        rep.stop()
+        assert "timed: 100 Hz" in rep.log()
+        assert client.spin_until(lambda: _idle(latest_status(status)), 60), f"{latest_status(status)}\n{cal.log()}"
+        client.spin_until(lambda: False, 1.1)  # a status of the idle node
+        kv = latest_status(status)
+        dropped = int(kv["frames_dropped"])
+        assert dropped >= 1 and kv["frames_dropped_session"] == str(dropped), kv
+        assert f"{dropped} frame(s) dropped while the detector was busy" in status[-1].status[0].message
+        assert "lock-step" in kv["frames_dropped_note"], kv
+        r = client.call_trigger("/pascal_calib/calibrate")
+        assert not r.success
+        assert f"{dropped} of {kv['frames_received']} frame(s) arrived while the detector was busy" in r.message
+        assert "mode:=lockstep" in r.message and "Move the target" not in r.message, r.message
+        # after ~/reset the new session has dropped nothing yet: the refusal is the usual one
+        assert client.call_trigger("/pascal_calib/reset").success
+        r = client.call_trigger("/pascal_calib/calibrate")
+        assert not r.success and "0 view(s) collected" in r.message and "dropped" not in r.message, r.message
+    finally:
+        client.close()
+        rep.stop()
+        assert cal.stop() == 0, cal.log()
+
+
+def test_lockstep_without_calibration_node_stops_with_an_error(tmp_path: Path, session: Path) -> None:
+    dom = next_domain_id()
+    rep = NodeProcess("replay_node", {"source": str(session), "ack_timeout": 2.0, "exit_when_done": True},
+                      dom, tmp_path / "rep.log")
+    assert rep.wait(30) == 1, rep.log()
+    assert "lock-step: no calibration node within 2 s" in rep.log() and "mode:=timed" in rep.log()
+    bad = NodeProcess("replay_node", {"source": str(session), "mode": "fast"}, dom, tmp_path / "bad.log")
+    assert bad.wait(30) == 2
+    assert "mode must be lockstep or timed" in bad.log()
+
+
+def test_lockstep_replay_started_before_the_node(tmp_path: Path, session: Path) -> None:
+    """Lock-step waits for a calibration node that starts later, and loses no frame to the
+    discovery race (the acknowledgements are transient local)."""
+    n_frames = len(_truth(session)["images"])
+    dom = next_domain_id()
+    rep = NodeProcess("replay_node", {"source": str(session), "exit_when_done": True}, dom, tmp_path / "rep.log")
+    client = RosClient(dom)
+    cal = None
+    try:
+        client.spin_until(lambda: False, 3.0)
+        assert rep.proc.poll() is None, rep.log()
+        cal = NodeProcess("calibration_node", {"min_views": 6}, dom, tmp_path / "cal.log")
+        status = status_subscription(client)
+        assert client.spin_until(lambda: rep.proc.poll() is not None, 60), rep.log()
+        assert rep.wait(1) == 0, rep.log()
+        assert client.spin_until(lambda: latest_status(status).get("frames_examined") == str(n_frames), 5), (
+            f"{latest_status(status)}\n{rep.log()}")
+        kv = latest_status(status)
+        assert kv["frames_received"] == str(n_frames) and kv["frames_dropped"] == "0", kv
+        assert f"{n_frames} examined by the calibration node" in rep.log()
+    finally:
+        client.close()
+        rep.stop()
+        if cal is not None:
+            assert cal.stop() == 0, cal.log()

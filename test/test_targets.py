@@ -54,3 +54,39 @@ def test_load_target_errors(tmp_path: Path) -> None:
     bad.write_text("- just\n- a list\n")
     with pytest.raises(TargetError, match="mapping"):
         load_target(bad)
+
+
+def _installed_layout(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """This module as if installed (no package.xml beside it); returns an ament prefix with the
+    package's share directory (config/targets/ring_a4.yaml) and its ament index marker."""
+    from pascal_calib_ros import targets
+
+    monkeypatch.setattr(targets, "__file__", str(tmp_path / "site-packages" / "pascal_calib_ros" / "targets.py"))
+    prefix = tmp_path / "install" / "pascal_calib_ros"
+    (prefix / "share" / "ament_index" / "resource_index" / "packages").mkdir(parents=True)
+    (prefix / "share" / "ament_index" / "resource_index" / "packages" / "pascal_calib_ros").write_text("")
+    (prefix / "share" / "pascal_calib_ros" / "config" / "targets").mkdir(parents=True)
+    return prefix
+
+
+def test_installed_targets_are_found_through_the_ament_index(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    ring = packaged_targets_dir() / "ring_a4.yaml"  # the source tree's
+    prefix = _installed_layout(tmp_path, monkeypatch)
+    (prefix / "share" / "pascal_calib_ros" / "config" / "targets" / "ring_a4.yaml").write_text(ring.read_text())
+    monkeypatch.setenv("AMENT_PREFIX_PATH", f"{prefix}:{tmp_path / 'underlay'}")
+    assert packaged_targets_dir() == prefix / "share" / "pascal_calib_ros" / "config" / "targets"
+    assert resolve_target("ring_a4").rings[0].outer_radius == 0.080
+
+
+def test_missing_packaged_targets_say_where_they_were_looked_for(tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    _installed_layout(tmp_path, monkeypatch)
+    monkeypatch.delenv("AMENT_PREFIX_PATH", raising=False)  # no ament environment: tolerated
+    monkeypatch.setattr("sys.prefix", str(tmp_path / "venv"))
+    with pytest.raises(TargetError, match=r"packaged target files not found .*venv/share/pascal_calib_ros"):
+        resolve_target("ring_a4")
+    monkeypatch.setenv("AMENT_PREFIX_PATH", str(tmp_path / "elsewhere"))  # package not in the index: tolerated
+    with pytest.raises(TargetError, match="packaged target files not found"):
+        resolve_target("ring_a4")
+    (tmp_path / "venv" / "share" / "pascal_calib_ros" / "config" / "targets").mkdir(parents=True)  # pip install
+    assert packaged_targets_dir() == tmp_path / "venv" / "share" / "pascal_calib_ros" / "config" / "targets"

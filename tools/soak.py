@@ -4,9 +4,12 @@ the node's memory and processing rate every 5 s to a CSV. Run: tools/in_netns .v
 tools/soak.py --minutes 30 --csv out/soak.csv"""
 
 import argparse
+import sys
 from pathlib import Path
 
-from pascal_calib_ros.ros.throughput import run_load
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from node_load import run_load
 
 ap = argparse.ArgumentParser(description=__doc__)
 ap.add_argument("--minutes", type=float, default=30.0)

@@ -5,8 +5,10 @@ A view is summarised by the target's outer ellipse (the first circle): X, Y = ce
 size, size = sqrt(area) / image diagonal, skew = 1 - b / a (tilt); a grid by all its elements:
 X, Y = mean of the element centres, size = sqrt(area of their convex hull) / diagonal, skew =
 1 - the median b / a of the elements. A new view is accepted if its
-L1 distance to every stored view in that space exceeds ``min_distance``. Coverage of an axis is
-(max - min) over the stored views divided by the axis' expected span, clipped to [0, 1].
+L1 distance to every stored view in that space exceeds ``min_distance`` (``force``: a view asked
+for with the node's ``~/capture`` is stored whatever it resembles). Coverage of an axis is
+(max - min) over the stored views divided by the axis' expected span, clipped to [0, 1]. Each view
+may carry the robot's tool pose at its stamp (arm sessions, hand-eye calibration).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import numpy as np
 
 from ..detect.rings import Detection
 from ..geometry.conic import ellipses_from_conics
+from ..geometry.transform import Transform
 
 AXES = ("x", "y", "size", "skew")
 SPANS = {"x": 0.6, "y": 0.6, "size": 0.25, "skew": 0.3}
@@ -50,11 +53,13 @@ class ViewCollector:
     min_distance: float = 0.08
     views: list[Detection] = field(default_factory=list)
     params: list[np.ndarray] = field(default_factory=list)
+    robot_poses: list[Transform | None] = field(default_factory=list)  # T_base_tool per view (or None)
     rejected: Counter[str] = field(default_factory=Counter)
     last_rejection: str = ""
 
-    def offer(self, det: Detection) -> tuple[bool, str]:
-        """Store the view if usable and new enough; returns (accepted, reason)."""
+    def offer(self, det: Detection, robot_pose: Transform | None = None, force: bool = False) -> tuple[bool, str]:
+        """Store the view if usable and new enough (``force``: whatever it resembles) with its
+        robot pose; returns (accepted, reason)."""
         if not det.ok:
             return self._reject(det.reason)
         if self.views and (det.width, det.height) != (self.views[0].width, self.views[0].height):
@@ -63,7 +68,7 @@ class ViewCollector:
         p = view_parameters(det)
         if p is None:
             return self._reject("no circle to place the view")
-        if self.params:
+        if self.params and not force:
             d = min(float(np.sum(np.abs(p - q))) for q in self.params)
             if d < self.min_distance:
                 return self._reject("too similar to a stored view (move or tilt the target)")
@@ -71,6 +76,7 @@ class ViewCollector:
             return self._reject(f"view store full ({self.max_views} views); calibrate or reset")
         self.views.append(det)
         self.params.append(p)
+        self.robot_poses.append(robot_pose)
         return True, "accepted"
 
     def _reject(self, reason: str) -> tuple[bool, str]:
@@ -94,6 +100,7 @@ class ViewCollector:
         n = len(self.views)
         self.views.clear()
         self.params.clear()
+        self.robot_poses.clear()
         self.rejected.clear()
         self.last_rejection = ""
         return n

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..detect.rings import Detection
-from ..geometry.camera import rodrigues, rotation_to_rvec
+from ..geometry.camera import Camera, rodrigues, rotation_to_rvec
 from ..geometry.circular import (
     PT1_STARTS,
     CircularPointError,
@@ -23,7 +23,7 @@ from ..geometry.circular import (
     vanishing_line_from_centre,
     vanishing_line_huang,
 )
-from ..geometry.conic import Ellipse, ellipses_from_conics, normalize_conic
+from ..geometry.conic import Ellipse, ellipses_from_conics, fit_conics_algebraic, normalize_conic
 from ..geometry.homography import fit_homography
 from ..geometry.iac import IacSolution, iac_from_circular_points
 from ..targets import Target
@@ -324,6 +324,49 @@ def grid_homography_init(dets: list[Detection], target: Target, origin: tuple[fl
             R = U @ np.diag([1, 1, -1]) @ Vt
         poses.append(PlanePose(R, t))
     return sol, poses
+
+
+def pose_with_camera(det: Detection, target: Target, camera: Camera, origin: tuple[float, float]) -> PlanePose:
+    """Pose of a view from a calibrated camera of any lens model, wherever the target is in the
+    field (fisheye rays beyond 90 degrees included): the edges' rays are turned by a rotation Q
+    that puts their mean on the optical axis and drawn in a distortion-free pinhole camera there
+    (focal fx), where the circles are exact conics again; the pose found there by
+    :func:`pose_from_circles` (grids) or :func:`pose_from_view` is turned back (R = Q^T R_v,
+    t = Q^T t_v)."""
+    from dataclasses import replace
+
+    rays = [camera.unproject(e.points) for e in det.edges]
+    allr = np.concatenate(rays) if rays else np.zeros((0, 3))
+    allr = allr[np.all(np.isfinite(allr), 1)]
+    if len(allr) < 10:
+        raise CircularPointError("no edge point has a ray under the calibrated camera")
+    m = allr.mean(0)
+    m /= np.linalg.norm(m)
+    axis = np.cross(m, [0.0, 0.0, 1.0])
+    s_ = float(np.linalg.norm(axis))
+    Q = rodrigues(axis / s_ * np.arctan2(s_, float(m[2]))) if s_ > 1e-12 else np.eye(3)
+    f = float(camera.K[0, 0])
+    Kv = np.array([[f, 0.0, 0.0], [0.0, f, 0.0], [0.0, 0.0, 1.0]])
+
+    def virtual(r: np.ndarray) -> np.ndarray:
+        v = r @ Q.T
+        ok = np.all(np.isfinite(v), 1) & (v[:, 2] > 0.1)
+        return (f * v[ok, :2] / v[ok, 2:3]) if ok.any() else np.zeros((0, 2))
+
+    pts = [virtual(r) for r in rays]
+    keep = [k for k, p in enumerate(pts) if len(p) >= 12]
+    if not keep:
+        raise CircularPointError("no edge left in the virtual camera")
+    owner = np.repeat(np.arange(len(keep)), [len(pts[k]) for k in keep])
+    conics, ok = fit_conics_algebraic(np.concatenate([pts[k] for k in keep]), owner, len(keep))
+    edges = [replace(det.edges[k], points=pts[k], conic=C) for k, C, g in zip(keep, conics, ok, strict=True) if g]
+    corners = None
+    if det.corners is not None:
+        c = virtual(camera.unproject(det.corners))
+        corners = c if len(c) == len(det.corners) else None
+    vdet = replace(det, edges=edges, corners=corners)
+    pose = pose_from_circles(vdet, target, Kv, origin) if target.grids else pose_from_view(vdet, target, Kv, origin)
+    return PlanePose(Q.T @ pose.R, Q.T @ pose.t)
 
 
 def pose_to_params(pose: PlanePose, dof: int) -> np.ndarray:

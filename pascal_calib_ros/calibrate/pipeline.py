@@ -7,12 +7,16 @@ kept as reasons beside the views rather than raised.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from ..detect.rings import Detection
+from ..errors import PascalCalibError
+from ..geometry.camera import Camera
 from ..geometry.circular import CircularPointError
 from ..geometry.iac import DegenerateViewsError
+from ..geometry.lens import DISTORTION_CHOICES, LensModel
 from ..targets import Target
 from .initial import (
     CIRCLE_METHODS,
@@ -21,14 +25,21 @@ from .initial import (
     pose_from_circles,
     pose_from_view,
     pose_to_params,
+    pose_with_camera,
 )
-from .plumbline import division_parameter, plumb_bob_from_division, undistort_detections
+from .plumbline import (
+    division_parameter,
+    equidistant_focal,
+    plumb_bob_from_division,
+    undistort_detections,
+    virtual_pinhole_detections,
+)
 from .refine import (
     DISTORTION_MODELS,
-    INTRINSIC_NAMES,
     SHAPE_NAMES,
     RefineResult,
     ViewData,
+    intrinsic_names,
     refine,
     shape_frame_of,
 )
@@ -38,7 +49,7 @@ METHODS = (*CIRCLE_METHODS, "grid", "zhang")
 MIN_VIEWS = 3
 
 
-class CalibrationError(ValueError):
+class CalibrationError(PascalCalibError):
     """The session cannot be calibrated; the message says why and what to do."""
 
 
@@ -82,7 +93,7 @@ class CalibrationResult:
     warnings: list[str] = field(default_factory=list)
     K_initial: np.ndarray | None = None
     refined: bool = True
-    distortion_model: str = "plumb_bob"
+    distortion_model: str = "plumb_bob"  # what was asked for (a DISTORTION_CHOICES key)
     poses: list[np.ndarray] = field(default_factory=list)
     # per used view (same order as the used entries of ``views``): edge points and their signed
     # residuals (px, positive outwards), for reports
@@ -96,6 +107,14 @@ class CalibrationResult:
     shape: dict[str, float] = field(default_factory=dict)
     shape_std: dict[str, float] = field(default_factory=dict)
     shape_effect: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def model(self) -> str:
+        """The ROS ``distortion_model`` of D (plumb_bob, rational_polynomial, equidistant)."""
+        return DISTORTION_CHOICES[self.distortion_model][0].name
+
+    def camera(self) -> Camera:
+        return Camera(self.K, self.D, self.width, self.height, self.model)
 
     @property
     def n_used(self) -> int:
@@ -131,12 +150,66 @@ def view_data(det: Detection, target: Target, origin: tuple[float, float], max_p
 
 def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions = CalibrationOptions()
               ) -> CalibrationResult:
-    """Calibrate from detections (one per view, rejected ones included for the report)."""
-    opt = options
-    if not opt.method:
-        from dataclasses import replace
+    """Calibrate from detections (one per view, rejected ones included for the report): checked
+    options and views, a closed-form start, the refinement (outlier views dropped), views that had
+    no start posed with the refined camera and added, the target's shape if asked for."""
+    opt = _checked_options(options, target)
+    reports, usable = _checked_views(dets, opt)
+    w, h = dets[0].width, dets[0].height
+    if opt.method == "zhang":
+        return _zhang(dets, target, opt, reports, w, h)
+    lens = DISTORTION_CHOICES[opt.distortion][0]
+    start = closed_form_start(dets, usable, target, opt, reports)
+    if not opt.refine:
+        if lens.wide:
+            raise CalibrationError("the equidistant (fisheye) model needs the refinement: drop --no-refine")
+        for k in start.used:
+            reports[k].used = True
+        return CalibrationResult(start.sol.K, np.zeros(5), w, h, opt.method, float("nan"), {},
+                                 start.sol.degeneracy_ratio, reports, start.warnings, start.sol.K, False, "none")
+    origin = target.circles[0].center
+    dof = 6 if (len({c.center for c in target.circles}) > 1 or target.checkerboards) else 5
+    views, poses0, idx = _start_poses(dets, start, target, opt, reports, origin, dof)
+    if len(idx) < opt.min_views:
+        raise CalibrationError(f"only {len(idx)} view(s) gave a pose; need {opt.min_views}")
+    D0 = _start_distortion(dets, start, opt, lens.n, w, h)
+    res = refine(views, start.sol.K, D0, poses0, dof, opt.distortion, opt.zero_skew, opt.edge_offsets)
+    res, views, idx = _drop_outlier_views(res, views, idx, reports, opt, dof)
+    res, views, idx = _add_views_without_start(res, views, idx, dets, usable, target, opt, reports, origin, dof)
+    warnings = list(start.warnings)
+    shape: dict[str, float] = {}
+    shape_std: dict[str, float] = {}
+    shape_effect: dict[str, float] = {}
+    if opt.target_shape:
+        res, shape_effect = _estimate_target_shape(res, views, target, opt, origin, dof)
+        shape, shape_std = res.shape, res.shape_std
+        warnings += _shape_warnings(shape, shape_std, shape_effect, res)
+    if not np.all(np.isfinite(res.K)) or res.K[0, 0] <= 0 or res.K[1, 1] <= 0:
+        raise CalibrationError("refinement diverged; check the target file matches the printed target")
+    for j, k in enumerate(idx):
+        reports[k].used = True
+        reports[k].reason = ""
+        reports[k].rms = float(res.view_rms[j])
+        reports[k].edge_offset = float(res.offsets[j])
+    _check_result(res, w, h, warnings)
+    folded = _check_model_fits(res, views, lens, w, h)
+    if not lens.wide and (res.rms > MISFIT_RMS or folded > 0):
+        _refuse_if_fisheye_fits(dets, target, opt, res.rms)
+    if folded > 0:
+        warnings.append(f"{100 * folded:.2f} % of the edge points lie where the fitted {lens.name} model folds over "
+                        "(the image's rim): the model does not hold there; a richer model may")
+    return CalibrationResult(res.K, res.D, w, h, opt.method, res.rms, res.std, start.sol.degeneracy_ratio, reports,
+                             warnings, start.sol.K, True, opt.distortion, res.poses, [v.points for v in views],
+                             res.residuals, [v.circle_ids for v in views], [c.feature for c in target.circles],
+                             shape, shape_std, shape_effect)
 
-        opt = replace(opt, method=target.default_method())
+
+def _checked_options(options: CalibrationOptions, target: Target) -> CalibrationOptions:
+    """The options with the target's default method filled in; a CalibrationError for any that
+    cannot work with this target."""
+    from dataclasses import replace
+
+    opt = replace(options, method=options.method or target.default_method())
     if opt.method not in METHODS:
         raise CalibrationError(f"unknown method {opt.method!r}; choose one of {', '.join(METHODS)}")
     if opt.method not in target.methods():
@@ -154,6 +227,11 @@ def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions
     if opt.target_shape and (opt.method == "zhang" or not opt.refine):
         raise CalibrationError("the target shape is estimated by the refinement of the circle methods; "
                                "drop --target-shape or use the target's default method with refinement")
+    return opt
+
+
+def _checked_views(dets: list[Detection], opt: CalibrationOptions) -> tuple[list[ViewReport], list[int]]:
+    """A report per view and the indices of the usable ones; a CalibrationError if too few."""
     if not dets:
         raise CalibrationError("no views given")
     sizes = {(d.width, d.height) for d in dets}
@@ -165,23 +243,53 @@ def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions
         raise CalibrationError(
             f"{len(usable)} usable view(s) of {len(dets)}; need at least {opt.min_views}. "
             + _rejection_summary(reports))
-    w, h = dets[0].width, dets[0].height
-    if opt.method == "zhang":
-        return _zhang(dets, target, opt, reports, w, h)
+    # a model with more coefficients than plumb_bob's five needs one more view per coefficient
+    n_coef = len(DISTORTION_MODELS[opt.distortion])
+    need = opt.min_views + max(0, n_coef - 5)
+    if len(usable) < need:
+        raise CalibrationError(f"{len(usable)} usable view(s) for the {opt.distortion} model's {n_coef} distortion "
+                               f"coefficients; take at least {need} views spread over the image (corners too), or "
+                               "choose a model with fewer coefficients (plumb_bob)")
+    return reports, usable
+
+
+@dataclass
+class ClosedFormStart:
+    """What the closed form gave: K and its degeneracy figures, the views it used (indices into
+    the session), per-view grid poses when it has them, the detections it ran on (drawn without
+    distortion where the lens needs it), the plumb-line division parameter."""
+
+    sol: Any
+    used: list[int]
+    grid_poses: dict[int, Any]
+    init_dets: list[Detection]
+    division: float
+    warnings: list[str]
+
+
+def closed_form_start(dets: list[Detection], usable: list[int], target: Target, opt: CalibrationOptions,
+                      reports: list[ViewReport]) -> ClosedFormStart:
+    """K from the circular points (or grid homographies) of the usable views. Strong distortion
+    is taken out first: a fisheye's edges are drawn in the virtual pinhole camera of a generic
+    equidistant lens, a grid's rows are straightened by a division model (plumb line)."""
+    lens = DISTORTION_CHOICES[opt.distortion][0]
     good = [dets[k] for k in usable]
     lam = 0.0
     init_dets = dets
-    if target.grids and opt.distortion != "none":
+    if lens.wide:
+        init_dets = virtual_pinhole_detections(dets, equidistant_focal(good, target))
+    elif target.grids and opt.distortion != "none":
         # grids are used with strongly distorting lenses: straighten the rows first (plumb line)
         lam = division_parameter(good, target)
         init_dets = undistort_detections(dets, lam)
-        good = [init_dets[k] for k in usable]
-    grid_poses: list = []
+    good = [init_dets[k] for k in usable]
+    grid_poses: dict[int, Any] = {}
     try:
         if opt.method == "grid":
-            sol, grid_poses = grid_homography_init(good, target, target.circles[0].center, opt.zero_skew)
-            used_local = [k for k, p in enumerate(grid_poses) if p is not None]
-            failed = {k: "fewer than 6 grid elements" for k, p in enumerate(grid_poses) if p is None}
+            sol, poses = grid_homography_init(good, target, target.circles[0].center, opt.zero_skew)
+            used_local = [k for k, p in enumerate(poses) if p is not None]
+            failed = {k: "fewer than 6 grid elements" for k, p in enumerate(poses) if p is None}
+            grid_poses = {usable[k]: p for k, p in enumerate(poses) if p is not None}
         else:
             sol, used_local, failed = intrinsics_closed_form(good, target, opt.method, opt.zero_skew)
     except DegenerateViewsError as exc:
@@ -189,79 +297,107 @@ def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions
     for k_local, why in failed.items():
         rep = reports[usable[k_local]]
         rep.used, rep.reason = False, f"{opt.method}: {why}"
-    used = [usable[k] for k in used_local]
-    warnings = [sol.warning] if sol.warning else []
-    if not opt.refine:
-        for k in used:
-            reports[k].used = True
-        return CalibrationResult(sol.K, np.zeros(5), w, h, opt.method, float("nan"), {}, sol.degeneracy_ratio,
-                                 reports, warnings, sol.K, False, "none")
-    origin = target.circles[0].center
-    dof = 6 if (len({c.center for c in target.circles}) > 1 or target.checkerboards) else 5
+    return ClosedFormStart(sol, [usable[k] for k in used_local], grid_poses, init_dets, lam,
+                           [sol.warning] if sol.warning else [])
+
+
+def _start_poses(dets: list[Detection], start: ClosedFormStart, target: Target, opt: CalibrationOptions,
+                 reports: list[ViewReport], origin: tuple[float, float], dof: int
+                 ) -> tuple[list[ViewData], list[np.ndarray], list[int]]:
+    """Observations and start pose of every view the closed form used."""
+    lens = DISTORTION_CHOICES[opt.distortion][0]
     views, poses0, idx = [], [], []
-    for k in used:
+    for k in start.used:
         try:
-            if grid_poses:
-                pose = grid_poses[usable.index(k)]
+            if k in start.grid_poses:
+                pose = start.grid_poses[k]
             elif target.grids:
-                pose = pose_from_circles(init_dets[k], target, sol.K, origin)
+                pose = pose_from_circles(start.init_dets[k], target, start.sol.K, origin)
             else:
-                pose = pose_from_view(dets[k], target, sol.K, origin)
+                pose = pose_from_view(start.init_dets[k] if lens.wide else dets[k], target, start.sol.K, origin)
         except (CircularPointError, np.linalg.LinAlgError) as exc:
             reports[k].used, reports[k].reason = False, f"pose: {exc}"
             continue
-        n_edges = max(len(dets[k].edges), 1)
-        per_edge = max(8, min(opt.max_points_per_edge, opt.max_points_per_view // n_edges))
-        views.append(view_data(dets[k], target, origin, per_edge, opt.use_corners))
+        views.append(_observations(dets[k], target, origin, opt))
         poses0.append(pose_to_params(pose, dof))
         idx.append(k)
-    if len(idx) < opt.min_views:
-        raise CalibrationError(f"only {len(idx)} view(s) gave a pose; need {opt.min_views}")
-    D0 = np.zeros(5)
-    if lam and "k1" in DISTORTION_MODELS[opt.distortion]:
-        r_max = max(float(np.max(np.hypot(*(e.points - [w / 2, h / 2]).T))) for k in used for e in dets[k].edges)
-        D0[0], D0[1] = plumb_bob_from_division(lam, float(np.sqrt(sol.K[0, 0] * sol.K[1, 1])), r_max,
-                                               "k2" in DISTORTION_MODELS[opt.distortion])
-    res = refine(views, sol.K, D0, poses0, dof, opt.distortion, opt.zero_skew, opt.edge_offsets)
-    # drop outlier views (moved during exposure, wrong detection) and refit once
+    return views, poses0, idx
+
+
+def _observations(det: Detection, target: Target, origin: tuple[float, float], opt: CalibrationOptions) -> ViewData:
+    n_edges = max(len(det.edges), 1)
+    per_edge = max(8, min(opt.max_points_per_edge, opt.max_points_per_view // n_edges))
+    return view_data(det, target, origin, per_edge, opt.use_corners)
+
+
+def _start_distortion(dets: list[Detection], start: ClosedFormStart, opt: CalibrationOptions, n: int, w: int,
+                      h: int) -> np.ndarray:
+    """Zero, or k1 (k2) of the plumb-line division model when grids were straightened."""
+    D0 = np.zeros(n)
+    if start.division and "k1" in DISTORTION_MODELS[opt.distortion]:
+        r_max = max(float(np.max(np.hypot(*(e.points - [w / 2, h / 2]).T))) for k in start.used for e in dets[k].edges)
+        f = float(np.sqrt(start.sol.K[0, 0] * start.sol.K[1, 1]))
+        D0[0], D0[1] = plumb_bob_from_division(start.division, f, r_max, "k2" in DISTORTION_MODELS[opt.distortion])
+    return D0
+
+
+def _drop_outlier_views(res: RefineResult, views: list[ViewData], idx: list[int], reports: list[ViewReport],
+                        opt: CalibrationOptions, dof: int) -> tuple[RefineResult, list[ViewData], list[int]]:
+    """Drop views whose RMS exceeds ``outlier_factor`` times the median (moved during exposure,
+    wrong detection) and refit once."""
     med = float(np.median(res.view_rms))
     bad = [i for i, r in enumerate(res.view_rms) if r > opt.outlier_factor * max(med, 0.02)]
-    if bad and len(idx) - len(bad) >= opt.min_views:
-        for i in bad:
-            reports[idx[i]].used = False
-            reports[idx[i]].reason = (f"outlier: edge RMS {res.view_rms[i]:.3f} px is "
-                                      f"{res.view_rms[i] / max(med, 1e-9):.1f}x the median {med:.3f} px")
-        keep = [i for i in range(len(idx)) if i not in bad]
-        views = [views[i] for i in keep]
-        idx = [idx[i] for i in keep]
-        res = refine(views, res.K, res.D, [res.poses[i] for i in keep], dof, opt.distortion, opt.zero_skew,
-                     opt.edge_offsets)
-    shape: dict[str, float] = {}
-    shape_std: dict[str, float] = {}
-    shape_effect: dict[str, float] = {}
-    if opt.target_shape:
-        frame = target_shape_frame(target, origin)
-        flat = res
-        res = refine(views, flat.K, flat.D, flat.poses, dof, opt.distortion, opt.zero_skew, opt.edge_offsets,
-                     shape=opt.target_shape, shape_frame=frame)
-        shape, shape_std = res.shape, res.shape_std
-        shape_effect = {"fx": res.K[0, 0] - flat.K[0, 0], "fy": res.K[1, 1] - flat.K[1, 1],
-                        "cx": res.K[0, 2] - flat.K[0, 2], "cy": res.K[1, 2] - flat.K[1, 2],
-                        "rms_flat": flat.rms}
-        if "pitch_ratio" in shape_std:
-            shape_effect["pitch_aspect_correlation"] = res.pitch_aspect_correlation
-        warnings += _shape_warnings(shape, shape_std, shape_effect, res)
-    if not np.all(np.isfinite(res.K)) or res.K[0, 0] <= 0 or res.K[1, 1] <= 0:
-        raise CalibrationError("refinement diverged; check the target file matches the printed target")
-    for j, k in enumerate(idx):
-        reports[k].used = True
-        reports[k].rms = float(res.view_rms[j])
-        reports[k].edge_offset = float(res.offsets[j])
-    _check_result(res, w, h, warnings)
-    return CalibrationResult(res.K, res.D, w, h, opt.method, res.rms, res.std, sol.degeneracy_ratio, reports,
-                             warnings, sol.K, True, opt.distortion, res.poses, [v.points for v in views],
-                             res.residuals, [v.circle_ids for v in views], [c.feature for c in target.circles],
-                             shape, shape_std, shape_effect)
+    if not bad or len(idx) - len(bad) < opt.min_views:
+        return res, views, idx
+    for i in bad:
+        reports[idx[i]].used = False
+        reports[idx[i]].reason = (f"outlier: edge RMS {res.view_rms[i]:.3f} px is "
+                                  f"{res.view_rms[i] / max(med, 1e-9):.1f}x the median {med:.3f} px")
+    keep = [i for i in range(len(idx)) if i not in bad]
+    res = refine([views[i] for i in keep], res.K, res.D, [res.poses[i] for i in keep], dof, opt.distortion,
+                 opt.zero_skew, opt.edge_offsets)
+    return res, [views[i] for i in keep], [idx[i] for i in keep]
+
+
+def _add_views_without_start(res: RefineResult, views: list[ViewData], idx: list[int], dets: list[Detection],
+                             usable: list[int], target: Target, opt: CalibrationOptions, reports: list[ViewReport],
+                             origin: tuple[float, float], dof: int
+                             ) -> tuple[RefineResult, list[ViewData], list[int]]:
+    """Views the closed form could not use (a fisheye's rim, a view whose conics the start could
+    not solve) are posed with the refined camera (:func:`pose_with_camera`) and the refinement is
+    repeated with them; a view that still fits badly is dropped as an outlier again."""
+    missing = [k for k in usable if k not in idx and not reports[k].reason.startswith("outlier")]
+    if not missing:
+        return res, views, idx
+    cam = Camera(res.K, res.D, dets[0].width, dets[0].height, res.model)
+    new_views, new_poses, new_idx = [], [], []
+    for k in missing:
+        try:
+            pose = pose_with_camera(dets[k], target, cam, origin)
+        except (CircularPointError, np.linalg.LinAlgError, ValueError) as exc:
+            reports[k].reason = f"{reports[k].reason}; pose with the refined camera: {exc}"
+            continue
+        new_views.append(_observations(dets[k], target, origin, opt))
+        new_poses.append(pose_to_params(pose, dof))
+        new_idx.append(k)
+    if not new_idx:
+        return res, views, idx
+    views, idx = views + new_views, idx + new_idx
+    res = refine(views, res.K, res.D, [*res.poses, *new_poses], dof, opt.distortion, opt.zero_skew, opt.edge_offsets)
+    return _drop_outlier_views(res, views, idx, reports, opt, dof)
+
+
+def _estimate_target_shape(res: RefineResult, views: list[ViewData], target: Target, opt: CalibrationOptions,
+                           origin: tuple[float, float], dof: int) -> tuple[RefineResult, dict[str, float]]:
+    """Refit with the sheet's shape free; the effect on the intrinsics against the flat fit."""
+    flat = res
+    res = refine(views, flat.K, flat.D, flat.poses, dof, opt.distortion, opt.zero_skew, opt.edge_offsets,
+                 shape=opt.target_shape, shape_frame=target_shape_frame(target, origin))
+    effect = {"fx": res.K[0, 0] - flat.K[0, 0], "fy": res.K[1, 1] - flat.K[1, 1],
+              "cx": res.K[0, 2] - flat.K[0, 2], "cy": res.K[1, 2] - flat.K[1, 2], "rms_flat": flat.rms}
+    if "pitch_ratio" in res.shape_std:
+        effect["pitch_aspect_correlation"] = res.pitch_aspect_correlation
+    return res, effect
 
 
 def target_shape_frame(target: Target, origin: tuple[float, float]) -> tuple[float, float, float, float]:
@@ -296,6 +432,53 @@ def _shape_warnings(shape: dict[str, float], std: dict[str, float], effect: dict
     return [*out, f"target shape matters: {'; '.join(what)}; against a flat, true-to-scale sheet it moves {moves}"]
 
 
+MISFIT_RMS = 0.5  # px of edge RMS above which a pinhole model is checked against a fisheye one
+
+
+def _refuse_if_fisheye_fits(dets: list[Detection], target: Target, opt: CalibrationOptions, rms: float) -> None:
+    """A pinhole polynomial fitted to a fisheye does not fold, it just fits badly: when the edge
+    RMS is high, the equidistant model is tried on the same views; if it fits three times better
+    the result is refused and the model named, rather than a camera that is wrong everywhere."""
+    from dataclasses import replace
+
+    try:
+        fish = calibrate(dets, target, replace(opt, distortion="equidistant"))
+    except CalibrationError:
+        return
+    if fish.rms < rms / 3:
+        raise CalibrationError(f"the {opt.distortion} model does not fit this lens (edge RMS {rms:.2f} px); the "
+                               f"equidistant (fisheye) model fits the same views with {fish.rms:.3f} px: use "
+                               "--distortion equidistant (node: distortion_model equidistant)")
+
+
+FOLD_REFUSE_FRACTION = 0.01  # a fitted model folding over under this share of the edge points is refused
+FOLD_WARN_FRACTION = 0.0005
+
+
+def _check_model_fits(res: RefineResult, views: list[ViewData], lens: LensModel, w: int, h: int) -> float:
+    """A pinhole polynomial fitted to a lens wider than it can describe folds over: some observed
+    edge points then have no ray (or not the one they came from). Refuse such a result and name
+    the model to use, rather than publish a folded-over camera."""
+    cam = Camera(res.K, res.D, w, h, lens.name)
+    pts = np.concatenate([v.points for v in views])
+    rays = cam.unproject(pts)
+    ok = np.all(np.isfinite(rays), 1)
+    if not lens.wide:
+        ok &= rays[:, 2] > 0
+    back = cam.project(rays[ok]) if ok.any() else np.zeros((0, 2))
+    ok[ok] &= np.linalg.norm(back - pts[ok], axis=1) < 0.05
+    bad = float(np.mean(~ok))
+    if bad > FOLD_REFUSE_FRACTION:
+        field = float(np.degrees(lens.max_angle(res.D)))
+        advice = ("use --distortion equidistant (fisheye)" + (", or rational_polynomial for a wide-angle lens"
+                                                              if lens.name == "plumb_bob" else "")
+                  if not lens.wide else "check that the views show this target")
+        raise CalibrationError(f"the fitted {lens.name} model folds over inside the observed field ({100 * bad:.1f} % "
+                               f"of the edge points have no consistent ray; the model is monotonic only up to "
+                               f"{field:.0f} degrees): this lens is wider than {lens.name} can describe; {advice}")
+    return bad if bad > FOLD_WARN_FRACTION else 0.0
+
+
 def _check_result(res: RefineResult, w: int, h: int, warnings: list[str]) -> None:
     K = res.K
     if not (0 < K[0, 2] < w and 0 < K[1, 2] < h):
@@ -317,8 +500,9 @@ def _zhang(dets: list[Detection], target: Target, opt: CalibrationOptions, repor
         rep.used = k in used
         if dets[k].ok and not rep.used:
             rep.reason = "checkerboard not found"
-    names = [n for n in INTRINSIC_NAMES if n != "skew"]
-    return CalibrationResult(K, D, w, h, "zhang", rms, {n: float(s) for n, s in zip(names, std, strict=False)},
+    names = [n for n in intrinsic_names(DISTORTION_CHOICES[opt.distortion][0]) if n != "skew"]
+    return CalibrationResult(K, D, w, h, "zhang", rms, {n: float(s) for n, s in zip(names, std, strict=False)
+                                                         if np.isfinite(s)},
                              float("nan"), reports, [], None, True, opt.distortion)
 
 

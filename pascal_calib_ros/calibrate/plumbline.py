@@ -11,12 +11,13 @@ those; lambda f^2 starts the plumb_bob k1 of the refinement.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
 
 from ..detect.rings import Detection
-from ..geometry.conic import ellipses_from_conics, fit_conics_algebraic
+from ..geometry.conic import ellipses_from_conics, fit_conics_algebraic, sampson_distances
 from ..targets import Target
 
 
@@ -120,3 +121,143 @@ def plumb_bob_from_division(lam: float, f: float, r_max: float, with_k2: bool = 
     A = np.stack([rho_u**3, rho_u**5], 1) if with_k2 else rho_u[:, None] ** 3
     coef = np.linalg.lstsq(A, rho_d - rho_u, rcond=None)[0]
     return float(coef[0]), float(coef[1]) if with_k2 else 0.0
+
+
+# -- fisheye (equidistant) start ---------------------------------------------------------------
+# Under a fisheye, circles do not image as conics and lines do not image as lines, so the closed
+# forms need undistorted edges, and the lens is unknown. The generic equidistant lens
+# r = f theta, centred on the image, is the start: its one parameter f is chosen so that the
+# target's straight rows (grid centres, checkerboard rows) map to great circles of the ray sphere
+# (their rays are coplanar with the camera centre: the plumb-line idea on rays, which works for
+# rays at and beyond 90 degrees), or, for a single ring, so that its edges are exact conics in the
+# virtual pinhole image. The edges are then drawn in a virtual pinhole camera (focal f, rays
+# within VIRTUAL_MAX_ANGLE) where the closed forms run unchanged.
+
+VIRTUAL_MAX_ANGLE = np.radians(70.0)
+
+
+def equidistant_rays(p: np.ndarray, f: float, centre: np.ndarray) -> np.ndarray:
+    """Unit rays (N, 3) of pixels under the generic equidistant lens r = f theta."""
+    d = p - centre
+    r = np.hypot(d[:, 0], d[:, 1])
+    theta = r / f
+    s = np.sin(theta) / np.where(r > 0, r, 1.0)
+    return np.stack([d[:, 0] * s, d[:, 1] * s, np.cos(theta)], 1)
+
+
+def _corner_lines(det: Detection, target: Target) -> list[np.ndarray]:
+    """Rows and columns of the checkerboard's inner corners (target order: row-major)."""
+    board = target.checkerboard
+    if det.corners is None or board is None:
+        return []
+    cols, rows = board.inner_corners
+    grid = det.corners.reshape(rows, cols, 2)
+    return [grid[i] for i in range(rows)] + [grid[:, j] for j in range(cols)]
+
+
+def _ray_planarity(lines: _Lines, f: float, centre: np.ndarray) -> float:
+    """Sum over lines of lambda_min / lambda_mid of the second moment of their rays: zero when
+    each line's rays lie in a plane through the camera centre, scale-free (rays that crowd
+    together as f grows do not make it small)."""
+    rays = equidistant_rays(lines.pts, f, centre)
+    n = len(lines.count)
+    M = np.zeros((n, 3, 3))
+    for i in range(3):
+        for j in range(i, 3):
+            M[:, i, j] = M[:, j, i] = np.bincount(lines.idx, rays[:, i] * rays[:, j], n)
+    w = np.linalg.eigvalsh(M)
+    return float(np.sum(w[:, 0] / np.maximum(w[:, 1], 1e-300)))
+
+
+def _virtual_pinhole(p: np.ndarray, f: float, centre: np.ndarray) -> np.ndarray:
+    """Pixels of the virtual pinhole camera (focal f, principal point ``centre``) seeing the rays
+    of the equidistant guess; NaN beyond VIRTUAL_MAX_ANGLE."""
+    d = p - centre
+    r = np.hypot(d[:, 0], d[:, 1])
+    theta = r / f
+    scale = np.where(theta < VIRTUAL_MAX_ANGLE, f * np.tan(np.minimum(theta, VIRTUAL_MAX_ANGLE))
+                     / np.where(r > 0, r, 1.0), np.nan)
+    scale = np.where(r > 0, scale, 1.0)
+    return centre + d * scale[:, None]
+
+
+def _conic_misfit(dets: list[Detection], f: float) -> float:
+    """Mean relative algebraic misfit of the edges as conics in the virtual pinhole image."""
+    total, count = 0.0, 0
+    for d in dets:
+        centre = np.array([d.width / 2, d.height / 2])
+        pts = [_virtual_pinhole(e.points, f, centre) for e in d.edges]
+        pts = [p[np.all(np.isfinite(p), 1)] for p in pts]
+        pts = [p for p in pts if len(p) >= 20]
+        if not pts:
+            continue
+        owner = np.repeat(np.arange(len(pts)), [len(p) for p in pts])
+        allp = np.concatenate(pts)
+        conics, ok = fit_conics_algebraic(allp, owner, len(pts))
+        par, real = ellipses_from_conics(conics)
+        dist = sampson_distances(conics, allp, owner)
+        for k in range(len(pts)):
+            if ok[k] and real[k]:
+                size = float(np.sqrt(max(par[k, 2] * par[k, 3], 1e-12)))
+                total += float(np.sqrt(np.mean(dist[owner == k] ** 2))) / size
+                count += 1
+    return total / count if count else float("inf")
+
+
+def _golden_log(fun: Callable[[float], float], lo: float, hi: float, iterations: int = 50) -> float:
+    """Minimiser of ``fun`` over [lo, hi] by golden-section search on log f."""
+    a_, b_ = np.log(lo), np.log(hi)
+    g = (np.sqrt(5) - 1) / 2
+    a, b = b_ - g * (b_ - a_), a_ + g * (b_ - a_)
+    fa, fb = fun(float(np.exp(a))), fun(float(np.exp(b)))
+    for _ in range(iterations):
+        if fa < fb:
+            b_, b, fb = b, a, fa
+            a = b_ - g * (b_ - a_)
+            fa = fun(float(np.exp(a)))
+        else:
+            a_, a, fa = a, b, fb
+            b = a_ + g * (b_ - a_)
+            fb = fun(float(np.exp(b)))
+    return float(np.exp((a_ + b_) / 2))
+
+
+def equidistant_focal(dets: list[Detection], target: Target) -> float:
+    """f (px) of the generic equidistant lens r = f theta, centred on the image, that best explains
+    the views: straight rows as coplanar rays (grids, checkerboards), else single-ring edges as
+    conics in the virtual pinhole image (module comment above)."""
+    w, h = dets[0].width, dets[0].height
+    centre = np.array([w / 2, h / 2])
+    line_list = [ln for d in dets for ln in (_lines_of_centres(d, target) + _corner_lines(d, target))]
+    lo, hi = 0.08 * max(w, h), 4.0 * max(w, h)
+    if line_list:
+        lines = _Lines(line_list)
+        return _golden_log(lambda f: _ray_planarity(lines, f, centre), lo, hi)
+    return _golden_log(lambda f: _conic_misfit(dets, f), lo, hi, iterations=30)
+
+
+def virtual_pinhole_detections(dets: list[Detection], f: float) -> list[Detection]:
+    """Copies of the detections drawn in the virtual pinhole camera of the equidistant guess:
+    edge points beyond VIRTUAL_MAX_ANGLE dropped (an edge keeps at least half of its points or is
+    dropped), conics refitted; corners kept only if all of them are within the angle."""
+    out = []
+    for d in dets:
+        centre = np.array([d.width / 2, d.height / 2])
+        edges = []
+        pts, keep = [], []
+        for e in d.edges:
+            p = _virtual_pinhole(e.points, f, centre)
+            good = np.all(np.isfinite(p), 1)
+            if good.sum() >= max(20, len(p) // 2):
+                pts.append(p[good])
+                keep.append(e)
+        if pts:
+            owner = np.repeat(np.arange(len(pts)), [len(p) for p in pts])
+            conics, ok = fit_conics_algebraic(np.concatenate(pts), owner, len(pts))
+            edges = [replace(e, points=p, conic=C) for e, p, C, g in zip(keep, pts, conics, ok, strict=True) if g]
+        corners = None
+        if d.corners is not None:
+            c = _virtual_pinhole(d.corners, f, centre)
+            corners = c if np.all(np.isfinite(c)) else None
+        out.append(replace(d, edges=edges, corners=corners))
+    return out

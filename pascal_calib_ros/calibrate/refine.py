@@ -31,23 +31,28 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass, field
+from typing import Any
 
 import cv2
 import numpy as np
+from scipy.spatial.transform import Rotation
 
-from ..geometry.camera import pixels_to_normalized, project_with_jacobians, undistort
+from ..geometry.camera import INTRINSIC_BASE, pixels_to_normalized, project_with_jacobians
+from ..geometry.lens import DISTORTION_CHOICES, PLUMB_BOB, LensModel
 
-INTRINSIC_NAMES = ("fx", "fy", "cx", "cy", "skew", "k1", "k2", "p1", "p2", "k3")
+# the plumb_bob parameter vector (other models: INTRINSIC_BASE + their coefficients)
+INTRINSIC_NAMES = INTRINSIC_BASE + PLUMB_BOB.coefficients
 SHAPE_NAMES = ("pitch_ratio", "warp_x", "warp_y")
 # what a user asks for -> the shape parameters estimated
 SHAPE_CHOICES = {"": (), "warp": ("warp_x", "warp_y"), "pitch": ("pitch_ratio",), "all": SHAPE_NAMES}
 
-DISTORTION_MODELS = {
-    "plumb_bob": ("k1", "k2", "p1", "p2", "k3"),
-    "plumb_bob_k3_fixed": ("k1", "k2", "p1", "p2"),
-    "radial": ("k1", "k2"),
-    "none": (),
-}
+# what a user asks for -> the distortion coefficients estimated (lens.DISTORTION_CHOICES)
+DISTORTION_MODELS = {choice: free for choice, (_, free) in DISTORTION_CHOICES.items()}
+
+
+def intrinsic_names(lens: LensModel) -> tuple[str, ...]:
+    """Names of the intrinsic vector of a lens model: fx fy cx cy skew, then its D."""
+    return INTRINSIC_BASE + lens.coefficients
 
 
 @dataclass
@@ -80,6 +85,7 @@ class RefineResult:
     message: str
     shape: dict[str, float] = field(default_factory=dict)  # SHAPE_NAMES -> value (0 when fixed)
     shape_std: dict[str, float] = field(default_factory=dict)  # estimated shape parameters only
+    model: str = "plumb_bob"  # ROS distortion_model of D
     # correlation of the estimated pitch ratio with the aspect ratio fy / fx (a mis-scaled print and non-square pixels
     # look alike unless views are tilted strongly about both axes)
     pitch_aspect_correlation: float = 0.0
@@ -110,13 +116,17 @@ class Problem:
 
     def __init__(self, views: list[ViewData], dof: int, free_intrinsics: tuple[str, ...], use_offsets: bool,
                  loss_scale: float = 0.3, shape: tuple[str, ...] = (),
-                 shape_frame: tuple[float, float, float, float] | None = None):
+                 shape_frame: tuple[float, float, float, float] | None = None, lens: LensModel = PLUMB_BOB):
         self.views = views
+        self.lens = lens
+        self.names = intrinsic_names(lens)
         self.dof = dof
         self.use_offsets = use_offsets
-        self.free = [INTRINSIC_NAMES.index(n) for n in free_intrinsics]
+        self.free = [self.names.index(n) for n in free_intrinsics]
         self.shape_idx = [SHAPE_NAMES.index(n) for n in shape]
-        self.ng = len(self.free) + len(self.shape_idx)
+        # globals: free intrinsics, shape parameters, then (subclasses) further global parameters
+        self.n_base = len(self.free) + len(self.shape_idx)
+        self.ng = self.n_base
         self.nv = len(views)
         self.per_view = dof + (1 if use_offsets else 0)
         self.loss_scale = loss_scale
@@ -144,12 +154,12 @@ class Problem:
         return np.concatenate([intr[self.free], shape[self.shape_idx], *per])
 
     def unpack(self, x: np.ndarray, intr0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """-> (all 10 intrinsics, all 3 shape parameters, poses (V, dof), offsets (V,))."""
+        """-> (all intrinsics, all 3 shape parameters, poses (V, dof), offsets (V,))."""
         intr = intr0.copy()
         nf = len(self.free)
         intr[self.free] = x[:nf]
         shape = np.zeros(len(SHAPE_NAMES))
-        shape[self.shape_idx] = x[nf:self.ng]
+        shape[self.shape_idx] = x[nf:self.n_base]
         vp = x[self.ng:].reshape(self.nv, self.per_view)
         poses = vp[:, : self.dof]
         offsets = vp[:, self.dof] if self.use_offsets else np.zeros(self.nv)
@@ -187,7 +197,10 @@ class Problem:
         intr, shape, poses, offsets = self.unpack(x, intr0)
         K, D = _camera(intr)
         R, dR, t = self.rotations(poses)
-        f, Jg, Jv = self._edges(K, D, R, dR, t, shape, offsets, jac)
+        if self.n_edge:
+            f, Jg, Jv = self._edges(K, D, R, dR, t, shape, offsets, jac)
+        else:  # checkerboard corners only
+            f, Jg, Jv = np.zeros(0), np.zeros((0, self.ng)), np.zeros((0, self.per_view))
         if self.n_corner:
             fc, Jgc, Jvc = self._corners(K, D, R, dR, t, shape, jac)
             f = np.concatenate([f, fc])
@@ -203,6 +216,16 @@ class Problem:
     def residuals(self, x: np.ndarray, intr0: np.ndarray) -> np.ndarray:
         return self.evaluate(x, intr0, jac=False)[0]
 
+    # -- loss (every row robust here; subclasses may add rows with a quadratic loss) --------
+    def robust_weights(self, f: np.ndarray, loss_scale: float) -> np.ndarray:
+        """IRLS weights of the soft-L1 loss, 1 / sqrt(1 + (r / f)^2)."""
+        return 1.0 / np.sqrt(1 + (f / loss_scale) ** 2)
+
+    def robust_cost(self, f: np.ndarray, loss_scale: float) -> float:
+        """Soft-L1 cost f^2 sum (sqrt(1 + (r / f)^2) - 1)."""
+        z = (f / loss_scale) ** 2
+        return float(loss_scale**2 * np.sum(np.sqrt(1 + z) - 1))
+
     def _per_view(self, A: np.ndarray, M: np.ndarray) -> np.ndarray:
         """Rows of A (n, ..., 3) times their view's matrix M[v] (3, k): one product per view (the
         edge rows of a view are contiguous)."""
@@ -217,10 +240,10 @@ class Problem:
         Rt = np.transpose(R, (0, 2, 1))
         tv = t[vi]
         ctr = self.board(self.centers, shape)[0]
-        xn = undistort(pixels_to_normalized(self.pts, K), D, iterations=6)
+        rays = self.lens.undistort(pixels_to_normalized(self.pts, K), D, strict=False)
         n = R[:, :, 2][vi]
-        lam = (np.sum(n * tv, 1) + ctr[:, 2]) / (np.sum(n[:, :2] * xn, 1) + n[:, 2])
-        X = np.concatenate([xn, np.ones((len(xn), 1))], 1) * lam[:, None]
+        lam = (np.sum(n * tv, 1) + ctr[:, 2]) / np.sum(n * rays, 1)
+        X = rays * lam[:, None]
         P = self._per_view(X - tv, R)  # R^T (X - t), as rows
         rel = P[:, :2] - ctr[:, :2]
         rho = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1e-12)
@@ -230,7 +253,7 @@ class Problem:
         for step in range(2):
             # the circle point at angle u, drawn on the printed sheet (each point at its own z)
             Q, dPds, slope = self.board(self.centers + r * u, shape)
-            q, dqdX, dqdI = project_with_jacobians(self._per_view(Q, Rt) + tv, K, D)
+            q, dqdX, dqdI = project_with_jacobians(self._per_view(Q, Rt) + tv, K, D, self.lens)
             dqdP = self._per_view(dqdX, R)  # image motion per board-frame motion
             tang = np.stack([-u[:, 1], s1 * u[:, 0], slope[:, 0] * -u[:, 1] + slope[:, 1] * u[:, 0]], 1)
             ti = np.einsum("nij,nj->ni", dqdP, tang)  # image of the circle's tangent (per radian / r)
@@ -252,12 +275,12 @@ class Problem:
         if not jac:
             return f, np.zeros((0, self.ng)), np.zeros((0, self.per_view))
         h = np.einsum("ni,nij->nj", nrm, dqdX)  # n^T dq/dX
-        Jg = np.empty((len(f), self.ng))
+        Jg = np.zeros((len(f), self.ng))
         nf = len(self.free)
         Jg[:, :nf] = -np.einsum("ni,nij->nj", nrm, dqdI[:, :, self.free])
         if self.shape_idx:
             g = self._per_view(h, R)  # n^T dq/dP
-            Jg[:, nf:] = -np.einsum("nk,nks->ns", g, dPds[:, :, self.shape_idx])
+            Jg[:, nf:self.n_base] = -np.einsum("nk,nks->ns", g, dPds[:, :, self.shape_idx])
         Jv = np.empty((len(f), self.per_view))
         # n^T dq/dX . (dR/drv_k Q): the outer product h Q^T against each view's dR/drv_k
         nr = self.dof - 3
@@ -273,17 +296,17 @@ class Problem:
         vi = self.view_of_corner
         P, dPds, _ = self.board(self.corner_obj, shape)
         Rv = R[vi]
-        q, dqdX, dqdI = project_with_jacobians(np.einsum("nij,nj->ni", Rv, P) + t[vi], K, D)
+        q, dqdX, dqdI = project_with_jacobians(np.einsum("nij,nj->ni", Rv, P) + t[vi], K, D, self.lens)
         f = (q - self.corners).ravel()
         if not jac:
             return f, np.zeros((0, self.ng)), np.zeros((0, self.per_view))
         m = len(q)
         nf = len(self.free)
-        Jg = np.empty((m, 2, self.ng))
+        Jg = np.zeros((m, 2, self.ng))
         Jg[:, :, :nf] = dqdI[:, :, self.free]
         if self.shape_idx:
             dqdP = np.einsum("nij,njk->nik", dqdX, Rv)
-            Jg[:, :, nf:] = np.einsum("nik,nks->nis", dqdP, dPds[:, :, self.shape_idx])
+            Jg[:, :, nf:self.n_base] = np.einsum("nik,nks->nis", dqdP, dPds[:, :, self.shape_idx])
         Jv = np.zeros((m, 2, self.per_view))
         Jv[:, :, : self.dof - 3] = np.einsum("nij,nkjl,nl->nik", dqdX, dR[vi], P)
         Jv[:, :, self.dof - 3: self.dof] = dqdX
@@ -319,9 +342,125 @@ class Problem:
         return J
 
 
+@dataclass
+class RobotChain:
+    """A robot chain as a *measurement* of every view's camera pose (calibrate/handeye.py).
+
+    Per view i the chain pose M_i (eye in hand: T_base_tool, the robot's pose; eye to hand:
+    T_tool_base, its inverse), the hand-eye transform X (camera -> tool, or camera -> base) and the
+    target's pose Y (target's local frame -> base, or -> tool) close the loop Y = M_i X C_i, with
+    C_i the view's target -> camera pose. The robot pose the images imply, G'_i, is compared with
+    the measured one G_i: delta_i = G_i^-1 G'_i (eye in hand: M_i^-1 Y C_i^-1 X^-1; eye to hand:
+    M_i X C_i Y^-1), six residuals per view, (rotation vector / sigma_rot, translation /
+    sigma_trans) times ``scale`` (pixels per sigma, so that they weigh like edge residuals).
+    Quadratic loss (a Gaussian arm), not the edges' robust one."""
+
+    chain: list[Any]  # geometry.transform.Transform M_i per view
+    eye_in_hand: bool
+    sigma_rot: float  # rad per axis
+    sigma_trans: float  # m per axis
+    scale: float = 1.0  # px per sigma
+
+
+class ChainProblem(Problem):
+    """:class:`Problem` with a robot chain: x = [free intrinsics, shape parameters, X (rvec, t),
+    Y (rvec, t), view 0 (6-dof pose, offset), ...]; rows = edge points, corners, then six chain
+    rows per view (:class:`RobotChain`). The chain rows' Jacobian is by central differences
+    (vectorised over the views: a handful of rotations per parameter)."""
+
+    N_CHAIN = 12
+
+    def __init__(self, views: list[ViewData], free_intrinsics: tuple[str, ...], use_offsets: bool,
+                 chain: RobotChain, loss_scale: float = 0.3, shape: tuple[str, ...] = (),
+                 shape_frame: tuple[float, float, float, float] | None = None, lens: LensModel = PLUMB_BOB):
+        super().__init__(views, 6, free_intrinsics, use_offsets, loss_scale, shape, shape_frame, lens)
+        if len(chain.chain) != self.nv:
+            raise ValueError(f"{len(chain.chain)} chain poses for {self.nv} views")
+        self.chain = chain
+        self.ng = self.n_base + self.N_CHAIN
+        self.n_robust = self.n_edge + 2 * self.n_corner
+        self.rows_of_view = [np.concatenate([r, self.n_robust + 6 * i + np.arange(6)])
+                             for i, r in enumerate(self.rows_of_view)]
+        self._RM = Rotation.concatenate([m.rotation for m in chain.chain]) if self.nv else None
+        self._tM = np.array([m.translation for m in chain.chain]).reshape(-1, 3)
+
+    def pack_chain(self, intr: np.ndarray, poses: list[np.ndarray], offsets: np.ndarray, xy: np.ndarray,
+                   shape: np.ndarray | None = None) -> np.ndarray:
+        """x from the intrinsics, the 6-dof poses, offsets and xy = [X rvec, X t, Y rvec, Y t]."""
+        base = self.pack(intr, poses, offsets, shape)
+        return np.concatenate([base[: self.n_base], np.asarray(xy, float), base[self.n_base:]])
+
+    def chain_params(self, x: np.ndarray) -> np.ndarray:
+        return x[self.n_base:self.n_base + self.N_CHAIN]
+
+    def chain_deltas(self, xy: np.ndarray, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per view the disagreement G_i^-1 G'_i as (rotation vectors (V, 3) rad, translations (V, 3) m)."""
+        RX, tX = Rotation.from_rotvec(xy[0:3]), xy[3:6]
+        RY, tY = Rotation.from_rotvec(xy[6:9]), xy[9:12]
+        RC, tC = Rotation.from_rotvec(poses[:, :3]), poses[:, 3:6]
+        RM, tM = self._RM, self._tM
+        assert RM is not None
+        if self.chain.eye_in_hand:  # M^-1 Y C^-1 X^-1
+            RMi = RM.inv()
+            R1, t1 = RMi * RY, RMi.apply(tY - tM)
+            RCi = RC.inv()
+            R2, t2 = R1 * RCi, t1 - (R1 * RCi).apply(tC)
+            RXi = RX.inv()
+            R3, t3 = R2 * RXi, t2 - (R2 * RXi).apply(tX)
+        else:  # M X C Y^-1
+            R1, t1 = RM * RX, RM.apply(tX) + tM
+            R2, t2 = R1 * RC, R1.apply(tC) + t1
+            RYi = RY.inv()
+            R3, t3 = R2 * RYi, t2 - (R2 * RYi).apply(tY)
+        return R3.as_rotvec().reshape(-1, 3), np.asarray(t3).reshape(-1, 3)
+
+    def chain_residuals(self, xy: np.ndarray, poses: np.ndarray) -> np.ndarray:
+        """(V, 6) normalised chain residuals (rotation then translation), times ``scale``."""
+        rv, t = self.chain_deltas(xy, poses)
+        c = self.chain
+        return np.concatenate([rv / c.sigma_rot, t / c.sigma_trans], 1) * c.scale
+
+    def evaluate(self, x: np.ndarray, intr0: np.ndarray, jac: bool = True
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        f, Jg, Jv = super().evaluate(x, intr0, jac)
+        _, _, poses, _ = self.unpack(x, intr0)
+        xy = self.chain_params(x)
+        fp = self.chain_residuals(xy, poses)
+        f = np.concatenate([f, fp.ravel()])
+        if not jac:
+            return f, Jg, Jv
+        h = 1e-6
+        nv = self.nv
+        Jgp = np.zeros((6 * nv, self.ng))
+        for k in range(self.N_CHAIN):
+            e = np.zeros(self.N_CHAIN)
+            e[k] = h
+            d = (self.chain_residuals(xy + e, poses) - self.chain_residuals(xy - e, poses)) / (2 * h)
+            Jgp[:, self.n_base + k] = d.ravel()
+        Jvp = np.zeros((nv, 6, self.per_view))
+        for k in range(6):
+            e = np.zeros(6)
+            e[k] = h
+            Jvp[:, :, k] = (self.chain_residuals(xy, poses + e) - self.chain_residuals(xy, poses - e)) / (2 * h)
+        return f, np.concatenate([Jg, Jgp]), np.concatenate([Jv, Jvp.reshape(6 * nv, self.per_view)])
+
+    def robust_weights(self, f: np.ndarray, loss_scale: float) -> np.ndarray:
+        w = np.ones(len(f))
+        w[: self.n_robust] = super().robust_weights(f[: self.n_robust], loss_scale)
+        return w
+
+    def robust_cost(self, f: np.ndarray, loss_scale: float) -> float:
+        return super().robust_cost(f[: self.n_robust], loss_scale) + 0.5 * float(np.sum(f[self.n_robust:] ** 2))
+
+    def chain_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """Row indices of the chain's rotation rows and translation rows."""
+        base = self.n_robust + 6 * np.arange(self.nv)[:, None]
+        return (base + np.arange(3)).ravel(), (base + 3 + np.arange(3)).ravel()
+
+
 def _camera(intr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     K = np.array([[intr[0], intr[4], intr[2]], [0, intr[1], intr[3]], [0, 0, 1.0]])
-    return K, intr[5:10].copy()
+    return K, intr[5:].copy()
 
 
 @dataclass
@@ -347,15 +486,14 @@ def levenberg_marquardt(prob: Problem, x0: np.ndarray, intr0: np.ndarray, loss_s
     nfev = 1
 
     def robust_cost(r: np.ndarray) -> float:
-        z = (r / loss_scale) ** 2
-        return float(loss_scale**2 * np.sum(np.sqrt(1 + z) - 1))
+        return prob.robust_cost(r, loss_scale)
 
     cost = robust_cost(f)
     lam = 1e-3
     message, success = "maximum iterations reached", False
     it = 0
     for it in range(1, max_iter + 1):  # noqa: B007 (the count is reported)
-        w = 1.0 / np.sqrt(1 + (f / loss_scale) ** 2)
+        w = prob.robust_weights(f, loss_scale)
         A, g = prob.normal_equations(f, Jg, Jv, w)
         d = np.sqrt(np.maximum(np.diag(A), 1e-30))
         An = A / d[:, None] / d[None, :]
@@ -384,7 +522,7 @@ def levenberg_marquardt(prob: Problem, x0: np.ndarray, intr0: np.ndarray, loss_s
         if rel < tol or np.linalg.norm(step * d) < tol * (np.linalg.norm(x * d) + tol):
             message, success = "converged", True
             break
-    w = 1.0 / np.sqrt(1 + (f / loss_scale) ** 2)
+    w = prob.robust_weights(f, loss_scale)
     A, _ = prob.normal_equations(f, Jg, Jv, w)
     return LMResult(x, f, A, w, cost, nfev, it, success, message)
 
@@ -398,17 +536,22 @@ def refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[n
     ``shape_frame`` is (x mid, y mid, x half-width, y half-width) of the warp in the local frame
     (default: the extent of the observed circles); the shape starts flat and true to scale, and
     shape parameters not named stay so."""
-    if distortion not in DISTORTION_MODELS:
-        raise ValueError(f"unknown distortion model {distortion!r}: {', '.join(DISTORTION_MODELS)}")
+    if distortion not in DISTORTION_CHOICES:
+        raise ValueError(f"unknown distortion model {distortion!r}: {', '.join(DISTORTION_CHOICES)}")
+    lens, free_d = DISTORTION_CHOICES[distortion]
+    names = intrinsic_names(lens)
     unknown = [s for s in shape if s not in SHAPE_NAMES]
     if unknown:
         raise ValueError(f"unknown target shape parameter(s) {unknown}: choose from {', '.join(SHAPE_NAMES)}")
-    free = ("fx", "fy", "cx", "cy") + (() if zero_skew else ("skew",)) + DISTORTION_MODELS[distortion]
-    prob = Problem(views, dof, free, use_offsets, loss_scale, tuple(shape), shape_frame)
-    intr0 = np.array([K0[0, 0], K0[1, 1], K0[0, 2], K0[1, 2], 0.0 if zero_skew else K0[0, 1], *np.asarray(D0, float)])
-    for name in INTRINSIC_NAMES[5:]:
+    free = ("fx", "fy", "cx", "cy") + (() if zero_skew else ("skew",)) + free_d
+    prob = Problem(views, dof, free, use_offsets, loss_scale, tuple(shape), shape_frame, lens)
+    D0 = np.asarray(D0, float).reshape(-1)
+    if len(D0) != lens.n:
+        raise ValueError(f"start D has {len(D0)} coefficients; {lens.name} has {lens.n}")
+    intr0 = np.array([K0[0, 0], K0[1, 1], K0[0, 2], K0[1, 2], 0.0 if zero_skew else K0[0, 1], *D0])
+    for name in names[5:]:
         if name not in free:  # coefficients the model does not estimate are held at zero
-            intr0[INTRINSIC_NAMES.index(name)] = 0.0
+            intr0[names.index(name)] = 0.0
     x0 = prob.pack(intr0, poses0, np.zeros(len(views)))
     sol = levenberg_marquardt(prob, x0, intr0, loss_scale, max_iter=max_iter)
     intr_, shape_v, poses, offsets = prob.unpack(sol.x, intr0)
@@ -433,7 +576,7 @@ def refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[n
     try:
         cov = np.linalg.pinv(sol.normal_matrix) * s2
         for k, idx in enumerate(prob.free):
-            std[INTRINSIC_NAMES[idx]] = float(np.sqrt(max(cov[k, k], 0.0)))
+            std[names[idx]] = float(np.sqrt(max(cov[k, k], 0.0)))
         for k, idx in enumerate(prob.shape_idx):
             j = len(prob.free) + k
             shape_std[SHAPE_NAMES[idx]] = float(np.sqrt(max(cov[j, j], 0.0)))
@@ -446,4 +589,4 @@ def refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[n
     return RefineResult(K, D, [p.copy() for p in poses], offsets, std, view_rms, corner_rms,
                         float(np.sqrt(np.mean(er * er))), per_view, float(sol.cost), int(sol.nfev),
                         bool(sol.success), str(sol.message), dict(zip(SHAPE_NAMES, map(float, shape_v), strict=True)),
-                        shape_std, float(corr))
+                        shape_std, lens.name, float(corr))

@@ -30,8 +30,31 @@ def calibrate_zhang(dets: list[Detection], target: Target, distortion: str = "pl
     elif distortion == "none":
         flags |= cv2.CALIB_FIX_K1 | cv2.CALIB_FIX_K2 | cv2.CALIB_FIX_K3 | cv2.CALIB_ZERO_TANGENT_DIST
     imgpts = [dets[k].corners.astype(np.float32).reshape(-1, 1, 2) for k in used]  # type: ignore[union-attr]
+    if distortion == "equidistant":
+        return _fisheye(obj, imgpts, used, w, h)
+    if distortion == "rational_polynomial":
+        flags |= cv2.CALIB_RATIONAL_MODEL
     out = cv2.calibrateCameraExtended([obj] * len(used), imgpts, (w, h), None, None,  # type: ignore[call-overload]
                                       flags=flags)
     rms, K, D = out[0], out[1], out[2]
-    std = np.asarray(out[5]).ravel()[:9]
-    return K, np.asarray(D).ravel()[:5], float(rms), used, std
+    n = 8 if distortion == "rational_polynomial" else 5
+    std = np.asarray(out[5]).ravel()[:4 + n]
+    return K, np.asarray(D).ravel()[:n], float(rms), used, std
+
+
+def _fisheye(obj: np.ndarray, imgpts: list[np.ndarray], used: list[int], w: int, h: int
+             ) -> tuple[np.ndarray, np.ndarray, float, list[int], np.ndarray]:
+    """OpenCV's fisheye calibration (it needs an intrinsic guess to converge; no standard
+    deviations: reported as NaN). Rays beyond about 87 degrees make it fail: say so."""
+    K0 = np.array([[w / 3.0, 0, w / 2.0], [0, w / 3.0, h / 2.0], [0, 0, 1.0]])
+    # OpenCV 5 names the fisheye flags in the cv2 namespace
+    flags = cv2.CALIB_USE_INTRINSIC_GUESS | cv2.CALIB_RECOMPUTE_EXTRINSIC | cv2.CALIB_FIX_SKEW
+    crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 200, 1e-10)
+    try:
+        rms, K, D, _, _ = cv2.fisheye.calibrate([obj.reshape(-1, 1, 3).astype(np.float64)] * len(imgpts),
+                                                [p.astype(np.float64) for p in imgpts], (w, h), K0, np.zeros(4),
+                                                flags=flags, criteria=crit)
+    except cv2.error as e:
+        raise DegenerateViewsError(f"OpenCV's fisheye calibration failed ({str(e).strip().splitlines()[-1]}); "
+                                   "corners near or beyond 90 degrees break it: use a circle method") from None
+    return K, np.asarray(D).ravel()[:4], float(rms), used, np.full(8, np.nan)

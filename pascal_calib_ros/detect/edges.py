@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 from scipy.special import ndtr
 
+from ..errors import PascalCalibError
 from ..geometry.conic import (
     ConicFitError,
     Ellipse,
@@ -44,7 +45,7 @@ class EdgeFit:
     kept_fraction: float  # profiles that gave a valid edge / profiles sampled
 
 
-class EdgeError(ValueError):
+class EdgeError(PascalCalibError):
     """No reliable edge along this curve (blurred, occluded, low contrast)."""
 
 

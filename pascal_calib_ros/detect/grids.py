@@ -21,12 +21,13 @@ from collections import deque
 
 import numpy as np
 
+from ..errors import PascalCalibError
 from ..geometry.conic import Ellipse
 from ..targets import CircleGrid, Target
 from .edges import refine_edges_batch
 
 
-class GridError(ValueError):
+class GridError(PascalCalibError):
     pass
 
 

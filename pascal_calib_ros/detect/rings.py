@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import cv2
 import numpy as np
@@ -37,6 +38,15 @@ class DetectionParams:
     curvature_correction: bool = True
     gamma: float = 1.0  # linearise intensities with this display gamma before locating edges
     min_edge_strength: float = 4.0  # grey levels per px along a blob outline (print vs shading)
+    # how far (relative to its size) a blob outline may depart from an ellipse; a fisheye bends
+    # large circles away from conics: the calibration raises it for wide lens models
+    ellipse_tolerance: float = 0.03
+
+    @staticmethod
+    def for_lens(wide: bool, **kwargs: Any) -> DetectionParams:
+        """The parameters for a lens model: a fisheye (``wide``) bends a large circle up to ~10 %
+        of its size away from the best ellipse (measured on equidistant renders of ring_a4)."""
+        return DetectionParams(ellipse_tolerance=0.12 if wide else 0.03, **kwargs)
 
 
 @dataclass
@@ -171,7 +181,7 @@ def _blobs_from_mask(mask: np.ndarray, scale: int, w: int, h: int, params: Detec
         pts = pts_of[i]
         fit = fits[i]
         x, y, bw, bh = cv2.boundingRect(contours[i])
-        if fit is None or fit[1] > 0.03 * min(fit[0].a, fit[0].b) + 0.7 * scale:
+        if fit is None or fit[1] > params.ellipse_tolerance * min(fit[0].a, fit[0].b) + 0.7 * scale:
             if at_border and bw * bh < 0.5 * sw * sh:
                 cut += 1
             continue
@@ -181,7 +191,7 @@ def _blobs_from_mask(mask: np.ndarray, scale: int, w: int, h: int, params: Detec
         holes = []
         for j in holes_of[k]:
             hf = fits[j]
-            if hf is not None and hf[1] < 0.03 * min(hf[0].a, hf[0].b) + 0.7 * scale:
+            if hf is not None and hf[1] < params.ellipse_tolerance * min(hf[0].a, hf[0].b) + 0.7 * scale:
                 holes.append((pts_of[j], hf[0]))
         out.append(_Blob(pts, e, holes, touches, res))
     return out, cut
@@ -311,7 +321,7 @@ def _pick_ring(blobs: list[_Blob], target: Target, params: DetectionParams, cut_
             size = np.sqrt(b.ellipse.a * b.ellipse.b)
             off = np.hypot(he.cx - b.ellipse.cx, he.cy - b.ellipse.cy) / size
             r = np.sqrt(he.a * he.b) / size
-            if off < 0.15 and abs(r / ratio - 1) < 0.35:
+            if off < 5 * params.ellipse_tolerance and abs(r / ratio - 1) < 0.35 + 5 * params.ellipse_tolerance:
                 if b.touches_border:
                     cut = True
                     continue
@@ -341,7 +351,7 @@ def _pick_disc(blobs: list[_Blob], ring_blob: _Blob, target: Target, params: Det
         size = np.sqrt(b.ellipse.a * b.ellipse.b)
         if b is ring_blob or any(np.sqrt(e.a * e.b) > 0.2 * size for _, e in b.holes):
             continue
-        if size < params.min_radius or b.fit_residual > 0.02 * size + 0.7:
+        if size < params.min_radius or b.fit_residual > 2 / 3 * params.ellipse_tolerance * size + 0.7:
             continue
         sr = size / rs
         dr = np.hypot(b.ellipse.cx - ring_blob.ellipse.cx, b.ellipse.cy - ring_blob.ellipse.cy) / rs

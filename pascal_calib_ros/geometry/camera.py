@@ -1,8 +1,8 @@
-"""Pinhole camera with plumb_bob (Brown-Conrady) distortion, vectorised.
+"""Camera: intrinsics K, a lens model (:mod:`.lens`) and its coefficients D, vectorised.
 
-x_d = x (1 + k1 r^2 + k2 r^4 + k3 r^6) + 2 p1 x y + p2 (r^2 + 2 x^2)
-y_d = y (1 + k1 r^2 + k2 r^4 + k3 r^6) + p1 (r^2 + 2 y^2) + 2 p2 x y
-u = fx x_d + s y_d + cx,  v = fy y_d + cy        (OpenCV / ROS convention, D = k1 k2 p1 p2 k3)
+u = fx x_d + s y_d + cx,  v = fy y_d + cy   (OpenCV / ROS convention), where (x_d, y_d) are the
+lens model's distorted normalised coordinates of a camera-frame point. Every model's formulas
+live in :mod:`.lens`; this module only adds K.
 """
 
 from __future__ import annotations
@@ -11,32 +11,53 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .lens import PLUMB_BOB, LensModel, model_for_coefficients
+
+INTRINSIC_BASE = ("fx", "fy", "cx", "cy", "skew")
+
 
 @dataclass(frozen=True)
 class Camera:
-    """Intrinsics K (3x3) and plumb_bob distortion D = (k1, k2, p1, p2, k3)."""
+    """Intrinsics K (3x3), distortion coefficients D of the lens model named ``model`` (ROS
+    ``distortion_model``; default plumb_bob, D = (k1, k2, p1, p2, k3))."""
 
     K: np.ndarray
     D: np.ndarray = field(default_factory=lambda: np.zeros(5))
     width: int = 0
     height: int = 0
+    model: str = "plumb_bob"
+
+    def __post_init__(self) -> None:
+        self.lens.check(self.D)
+
+    @property
+    def lens(self) -> LensModel:
+        return model_for_coefficients(self.D, self.model)
 
     @staticmethod
     def from_params(fx: float, fy: float, cx: float, cy: float, skew: float = 0.0,
-                    dist: np.ndarray | list[float] | None = None, width: int = 0, height: int = 0) -> Camera:
+                    dist: np.ndarray | list[float] | None = None, width: int = 0, height: int = 0,
+                    model: str = "plumb_bob") -> Camera:
         K = np.array([[fx, skew, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
-        D = np.zeros(5) if dist is None else np.asarray(dist, float).reshape(5)
-        return Camera(K, D, width, height)
+        lens = model_for_coefficients(np.zeros(5), model)
+        D = np.zeros(lens.n) if dist is None else np.asarray(dist, float).reshape(-1)
+        return Camera(K, D, width, height, lens.name)
 
     def project(self, X: np.ndarray) -> np.ndarray:
         """Camera-frame points (N, 3) -> pixels (N, 2)."""
-        X = np.asarray(X, float)
-        xn = X[:, :2] / X[:, 2:3]
-        return normalized_to_pixels(distort(xn, self.D), self.K)
+        return normalized_to_pixels(self.lens.distort(np.asarray(X, float), self.D), self.K)
+
+    def unproject(self, uv: np.ndarray) -> np.ndarray:
+        """Pixels (..., 2) -> unit rays (..., 3) in the camera frame (NaN where the model cannot
+        be inverted); rays may point beyond 90 degrees (fisheye)."""
+        return self.lens.undistort(pixels_to_normalized(uv, self.K), self.D)
 
     def undistort_pixels(self, uv: np.ndarray) -> np.ndarray:
-        """Pixels (N, 2) -> undistorted normalised coordinates (N, 2)."""
-        return undistort(pixels_to_normalized(uv, self.K), self.D)
+        """Pixels (N, 2) -> pinhole normalised coordinates x/z, y/z (N, 2); NaN for rays at or
+        beyond 90 degrees."""
+        rays = self.unproject(uv)
+        z = np.where(rays[..., 2] > 0, rays[..., 2], np.nan)
+        return rays[..., :2] / z[..., None]
 
 
 def pixels_to_normalized(uv: np.ndarray, K: np.ndarray) -> np.ndarray:
@@ -53,84 +74,32 @@ def normalized_to_pixels(xy: np.ndarray, K: np.ndarray) -> np.ndarray:
 
 
 def distort(xy: np.ndarray, D: np.ndarray) -> np.ndarray:
-    """Apply plumb_bob distortion to normalised coordinates (..., 2)."""
-    k1, k2, p1, p2, k3 = (float(v) for v in np.asarray(D, float).reshape(-1)[:5])
-    x, y = xy[..., 0], xy[..., 1]
-    r2 = x * x + y * y
-    radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
-    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
-    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
-    return np.stack([xd, yd], axis=-1)
-
-
-def distort_jacobian(xy: np.ndarray, D: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Partial derivatives (dxd/dx, dxd/dy, dyd/dx, dyd/dy) of :func:`distort`."""
-    k1, k2, p1, p2, k3 = (float(v) for v in np.asarray(D, float).reshape(-1)[:5])
-    x, y = xy[..., 0], xy[..., 1]
-    r2 = x * x + y * y
-    radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
-    dradial = k1 + r2 * (2 * k2 + 3 * k3 * r2)  # d radial / d r2
-    a = radial + 2 * x * x * dradial + 2 * p1 * y + 6 * p2 * x
-    b = 2 * x * y * dradial + 2 * p1 * x + 2 * p2 * y
-    c = 2 * x * y * dradial + 2 * p1 * x + 2 * p2 * y
-    d = radial + 2 * y * y * dradial + 6 * p1 * y + 2 * p2 * x
-    return a, b, c, d
-
-
-def project_with_jacobians(X: np.ndarray, K: np.ndarray, D: np.ndarray
-                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Project camera-frame points (N, 3) and differentiate analytically.
-
-    Returns the pixels q (N, 2), dq/dX (N, 2, 3) and dq/d(fx, fy, cx, cy, skew, k1, k2, p1, p2, k3)
-    (N, 2, 10), by the chain rule through x = X/Z, :func:`distort` and K (module docstring).
-    """
-    fx, s, fy = K[0, 0], K[0, 1], K[1, 1]
-    z = X[:, 2]
-    xn = X[:, :2] / z[:, None]
-    xd = distort(xn, D)
-    q = normalized_to_pixels(xd, K)
-    a, b, c, d = distort_jacobian(xn, D)
-    x, y = xn[:, 0], xn[:, 1]
-    # dq/dx (normalised), then dx/dX = [[1/Z, 0, -x/Z], [0, 1/Z, -y/Z]]
-    m00, m01 = fx * a + s * c, fx * b + s * d
-    m10, m11 = fy * c, fy * d
-    iz = 1.0 / z
-    dX = np.empty((len(X), 2, 3))
-    dX[:, 0, 0], dX[:, 0, 1] = m00 * iz, m01 * iz
-    dX[:, 0, 2] = -(m00 * x + m01 * y) * iz
-    dX[:, 1, 0], dX[:, 1, 1] = m10 * iz, m11 * iz
-    dX[:, 1, 2] = -(m10 * x + m11 * y) * iz
-    r2 = x * x + y * y
-    r4 = r2 * r2
-    # d(xd, yd)/d(k1, k2, p1, p2, k3)
-    dxd = np.stack([x * r2, x * r4, 2 * x * y, r2 + 2 * x * x, x * r4 * r2], 1)
-    dyd = np.stack([y * r2, y * r4, r2 + 2 * y * y, 2 * x * y, y * r4 * r2], 1)
-    dI = np.zeros((len(X), 2, 10))
-    dI[:, 0, 0], dI[:, 0, 2], dI[:, 0, 4] = xd[:, 0], 1.0, xd[:, 1]
-    dI[:, 1, 1], dI[:, 1, 3] = xd[:, 1], 1.0
-    dI[:, 0, 5:] = fx * dxd + s * dyd
-    dI[:, 1, 5:] = fy * dyd
-    return q, dX, dI
+    """plumb_bob distortion of pinhole normalised coordinates (..., 2)."""
+    return PLUMB_BOB.distort_normalized(np.asarray(xy, float), D)
 
 
 def undistort(xd: np.ndarray, D: np.ndarray, iterations: int = 8) -> np.ndarray:
-    """Invert :func:`distort` by Newton's method (vectorised, from x = x_d)."""
-    xd = np.asarray(xd, float)
-    if not np.any(np.asarray(D) != 0):
-        return xd.copy()
-    xy = xd.copy()
-    for _ in range(iterations):
-        f = distort(xy, D) - xd
-        a, b, c, d = distort_jacobian(xy, D)
-        det = a * d - b * c
-        det = np.where(np.abs(det) < 1e-12, 1e-12, det)
-        dx = (d * f[..., 0] - b * f[..., 1]) / det
-        dy = (-c * f[..., 0] + a * f[..., 1]) / det
-        xy[..., 0] -= dx
-        xy[..., 1] -= dy
-        if np.max(np.abs(dx)) + np.max(np.abs(dy)) < 1e-14:
-            break
-    return xy
+    """Invert :func:`distort` (plumb_bob) by Newton's method."""
+    return PLUMB_BOB.undistort_normalized(xd, D, iterations)
+
+
+def project_with_jacobians(X: np.ndarray, K: np.ndarray, D: np.ndarray, lens: LensModel = PLUMB_BOB
+                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Project camera-frame points (N, 3) and differentiate analytically.
+
+    Returns the pixels q (N, 2), dq/dX (N, 2, 3) and dq/d(fx, fy, cx, cy, skew, D...)
+    (N, 2, 5 + n), by the chain rule through the lens model's x_d(X) and K.
+    """
+    fx, s, fy = K[0, 0], K[0, 1], K[1, 1]
+    xd, dxdX, dxdD = lens.distort_with_jacobians(np.asarray(X, float), D)
+    q = normalized_to_pixels(xd, K)
+    A = np.array([[fx, s], [0.0, fy]])
+    dX = np.einsum("ij,njk->nik", A, dxdX)
+    dI = np.zeros((len(q), 2, 5 + lens.n))
+    dI[:, 0, 0], dI[:, 0, 2], dI[:, 0, 4] = xd[:, 0], 1.0, xd[:, 1]
+    dI[:, 1, 1], dI[:, 1, 3] = xd[:, 1], 1.0
+    dI[:, :, 5:] = np.einsum("ij,njk->nik", A, dxdD)
+    return q, dX, dI
 
 
 def rodrigues(rvec: np.ndarray) -> np.ndarray:
@@ -159,21 +128,30 @@ def rotation_to_rvec(R: np.ndarray) -> np.ndarray:
     return axis * th
 
 
-def model_error(cam_a: Camera, cam_b: Camera, width: int, height: int, step: int = 16) -> float:
+def model_error(cam_a: Camera, cam_b: Camera, width: int, height: int, step: int = 16,
+                mask: np.ndarray | None = None) -> float:
     """RMS pixel displacement over the image between two cameras (same rays, both models).
 
     For a grid of pixels of camera A, the ray is reprojected by camera B; the RMS of the
-    displacement measures how differently the two models map the world into the image.
+    displacement measures how differently the two models map the world into the image. ``mask``
+    (height, width), if given, restricts the grid to pixels where it is true (e.g. the observed
+    field); pixels whose ray either model cannot map are left out.
     """
     us, vs = np.meshgrid(np.arange(0, width, step) + 0.5, np.arange(0, height, step) + 0.5)
     uv = np.stack([us.ravel(), vs.ravel()], 1)
-    xn = cam_a.undistort_pixels(uv)
-    X = np.concatenate([xn, np.ones((len(xn), 1))], 1)
-    uv_b = cam_b.project(X)
-    return float(np.sqrt(np.mean(np.sum((uv_b - uv) ** 2, axis=1))))
+    if mask is not None:
+        uv = uv[mask[vs.ravel().astype(int), us.ravel().astype(int)]]
+    rays = cam_a.unproject(uv)
+    ok = np.all(np.isfinite(rays), 1)
+    if not cam_b.lens.wide:
+        ok &= rays[:, 2] > 1e-6
+    uv_b = cam_b.project(rays[ok])
+    d2 = np.sum((uv_b - uv[ok]) ** 2, axis=1)
+    return float(np.sqrt(np.mean(d2))) if len(d2) else float("nan")
 
 
-def calibration_errors(truth: Camera, K: np.ndarray, D: np.ndarray) -> dict[str, float]:
+def calibration_errors(truth: Camera, K: np.ndarray, D: np.ndarray, model: str = "",
+                       mask: np.ndarray | None = None) -> dict[str, float]:
     """Errors of an estimated camera (K, D) against the true one: focal lengths in percent,
     principal point in pixels, and the model error of :func:`model_error` over the image."""
     return {
@@ -182,5 +160,31 @@ def calibration_errors(truth: Camera, K: np.ndarray, D: np.ndarray) -> dict[str,
         "cx_err_px": float(K[0, 2] - truth.K[0, 2]),
         "cy_err_px": float(K[1, 2] - truth.K[1, 2]),
         "pp_err_px": float(np.hypot(K[0, 2] - truth.K[0, 2], K[1, 2] - truth.K[1, 2])),
-        "model_err_px": model_error(truth, Camera(K, D, truth.width, truth.height), truth.width, truth.height),
+        "model_err_px": model_error(truth, Camera(K, D, truth.width, truth.height,
+                                                  model_for_coefficients(D, model).name),
+                                    truth.width, truth.height, mask=mask),
     }
+
+
+RECTIFIED_MAX_HALF_FIELD = np.radians(60.0)
+
+
+def rectified_projection(camera: Camera) -> np.ndarray:
+    """P (3x4) of the ``sensor_msgs/CameraInfo`` rectified image. Pinhole models: P = [K | 0].
+    A fisheye's rays at or beyond 90 degrees have no pinhole image, so its P is a pinhole view
+    with the same principal point and image size whose horizontal half-field is the fisheye's own
+    at the nearer left/right image border, capped at RECTIFIED_MAX_HALF_FIELD (60 degrees: wider
+    pinhole views spend their pixels on the rim); fy/fx as in K. K itself stays the fisheye's."""
+    K = camera.K
+    P = np.concatenate([K, np.zeros((3, 1))], 1)
+    if not camera.lens.wide:
+        return P
+    cx, cy = K[0, 2], K[1, 2]
+    rays = camera.unproject(np.array([[0.0, cy], [camera.width - 1.0, cy]]))
+    angles = np.arccos(np.clip(rays[:, 2], -1.0, 1.0))
+    half = float(np.nanmin(np.where(np.isfinite(angles), angles, np.nan))) if np.any(np.isfinite(angles)) else 0.0
+    half = min(half if half > 0 else RECTIFIED_MAX_HALF_FIELD, RECTIFIED_MAX_HALF_FIELD)
+    half_width = min(cx, camera.width - 1.0 - cx)
+    f = half_width / np.tan(half)
+    P[0, 0], P[1, 1], P[0, 1] = f, f * K[1, 1] / K[0, 0], 0.0
+    return P

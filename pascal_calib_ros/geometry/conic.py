@@ -12,8 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import PascalCalibError
 
-class ConicFitError(ValueError):
+
+class ConicFitError(PascalCalibError):
     """The points do not determine an ellipse."""
 
 
@@ -318,8 +320,13 @@ def line_conic_intersection(line: np.ndarray, C: np.ndarray) -> tuple[np.ndarray
     a = v @ C @ v
     b = 2 * (u @ C @ v)
     c = u @ C @ u
-    disc = complex(b * b - 4 * a * c)
-    sq = np.sqrt(disc)
-    t1 = (-b + sq) / (2 * a)
-    t2 = (-b - sq) / (2 * a)
+    sq = np.sqrt(complex(b * b - 4 * a * c))
+    # the root formula without cancellation (Press et al., Numerical Recipes, section 5.6):
+    # q = -(b + sign sq) / 2 with the sign that adds magnitudes; t1 = q / a, t2 = c / q
+    if (b.conjugate() * sq).real < 0:
+        sq = -sq
+    q = -0.5 * (b + sq)
+    if q == 0:  # b = 0 and c = 0: a double root at t = 0
+        return u.astype(complex), u.astype(complex)
+    t1, t2 = q / a, c / q
     return u + t1 * v, u + t2 * v

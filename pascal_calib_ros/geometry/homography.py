@@ -34,6 +34,6 @@ def fit_homography(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
             p = X @ np.append(h, 1.0).reshape(3, 3).T
             return (p[:, :2] / p[:, 2:3] - dst).ravel()
 
-        H = np.append(least_squares(transfer, H.ravel()[:8], method="lm", xtol=1e-15, ftol=1e-15).x, 1.0)
+        H = np.append(least_squares(transfer, H.ravel()[:8], method="lm", xtol=1e-12, ftol=1e-12).x, 1.0)
         H = H.reshape(3, 3)
     return H

@@ -12,12 +12,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import PascalCalibError
+
 # Thresholds on the degeneracy ratio (smallest non-null / largest singular value), PAPER.md
 DEGENERACY_REJECT = 0.01
 DEGENERACY_WARN = 0.05
 
 
-class DegenerateViewsError(ValueError):
+class DegenerateViewsError(PascalCalibError):
     """The views do not determine w (too few, parallel planes, fronto-parallel only)."""
 
 

@@ -1,6 +1,9 @@
 """rosbag2 files (sqlite3 or mcap) read and written with the pure-Python ``rosbags`` library.
 
 Images are yielded as plain field dictionaries so that the ROS layer builds its own messages.
+Robot arm sessions: :func:`write_arm_bag` writes images and the robot's tool poses
+(geometry_msgs/PoseStamped or TransformStamped) as a driver would publish them while the arm
+rests at each pose; :func:`read_session` yields both in recorded order.
 """
 
 from __future__ import annotations
@@ -13,13 +16,17 @@ from typing import Any
 import cv2
 import numpy as np
 
+from ..errors import PascalCalibError
 from .images import read_grey
 
 IMAGE_TYPE = "sensor_msgs/msg/Image"
 COMPRESSED_TYPE = "sensor_msgs/msg/CompressedImage"
+POSE_TYPE = "geometry_msgs/msg/PoseStamped"
+TRANSFORM_TYPE = "geometry_msgs/msg/TransformStamped"
+POSE_TYPES = (POSE_TYPE, TRANSFORM_TYPE)
 
 
-class BagError(ValueError):
+class BagError(PascalCalibError):
     """The bag is missing, corrupt, or has no suitable topic."""
 
 
@@ -29,6 +36,20 @@ class BagImage:
     msgtype: str  # IMAGE_TYPE or COMPRESSED_TYPE
     fields: dict[str, Any]  # Image: height width encoding is_bigendian step data; Compressed: format data
     frame_id: str
+    stamp_ns: int = 0  # the header stamp
+
+
+@dataclass
+class BagPose:
+    """A robot pose message of a bag: the tool (child) in the base (frame_id) at stamp_ns."""
+
+    timestamp_ns: int  # when it was recorded
+    msgtype: str  # POSE_TYPE or TRANSFORM_TYPE
+    stamp_ns: int  # the header stamp
+    frame_id: str
+    child_frame_id: str  # TransformStamped only ("" for PoseStamped)
+    translation: tuple[float, float, float]
+    rotation: tuple[float, float, float, float]  # x, y, z, w
 
 
 def _typestore() -> Any:
@@ -77,7 +98,7 @@ def read_images(path: str | Path, topic: str = "") -> Iterator[BagImage]:
                               "is_bigendian": msg.is_bigendian, "step": msg.step, "data": bytes(msg.data)}
                 else:
                     fields = {"format": msg.format, "data": bytes(msg.data)}
-                yield BagImage(int(ts), conn.msgtype, fields, str(msg.header.frame_id))
+                yield BagImage(int(ts), conn.msgtype, fields, str(msg.header.frame_id), _stamp_ns(msg.header))
     except BagError:
         raise
     except Exception as e:
@@ -131,4 +152,182 @@ def write_image_bag(out: str | Path, images: list[Path], topic: str = "/image", 
                             step=img.shape[1] * img.dtype.itemsize,
                             data=np.frombuffer(np.ascontiguousarray(img).tobytes(), np.uint8))
             writer.write(conn, ts, store.serialize_cdr(msg, msgtype))
+    return out_p
+
+
+def _stamp_ns(header: Any) -> int:
+    return int(header.stamp.sec) * 10**9 + int(header.stamp.nanosec)
+
+
+def pose_topics(path: str | Path) -> dict[str, str]:
+    """PoseStamped and TransformStamped topics of a bag -> message type."""
+    from rosbags.rosbag2 import Reader
+
+    try:
+        with Reader(Path(path)) as reader:
+            return {c.topic: c.msgtype for c in reader.connections if c.msgtype in POSE_TYPES}
+    except Exception as e:
+        raise BagError(f"cannot open bag {path}: {e}") from None
+
+
+def read_session(path: str | Path, image_topic: str = "", pose_topic: str = "") -> Iterator[BagImage | BagPose]:
+    """The images of ``image_topic`` (or the only image topic) and the robot poses of
+    ``pose_topic`` (PoseStamped or TransformStamped) in recorded order; only images without
+    ``pose_topic``."""
+    from rosbags.rosbag2 import Reader
+
+    p = Path(path)
+    if not pose_topic:
+        yield from read_images(p, image_topic)
+        return
+    if not p.exists():
+        raise BagError(f"bag not found: {p}")
+    images = image_topics(p)
+    poses = pose_topics(p)
+    if pose_topic not in poses:
+        with Reader(p) as reader:
+            other = {c.topic: c.msgtype for c in reader.connections}
+        if pose_topic in other:
+            raise BagError(f"bag {p}: topic {pose_topic!r} is a {other[pose_topic]}, not a "
+                           "geometry_msgs/PoseStamped or TransformStamped")
+        raise BagError(f"bag {p} has no pose topic {pose_topic!r}; pose topics: {', '.join(sorted(poses)) or 'none'}")
+    if image_topic:
+        if image_topic not in images:
+            raise BagError(f"bag {p} has no image topic {image_topic!r}; it has {', '.join(sorted(images))}")
+    elif len(images) != 1:
+        raise BagError(f"bag {p} has {len(images)} image topics ({', '.join(sorted(images))}); set bag_topic")
+    else:
+        image_topic = next(iter(images))
+    store = _typestore()
+    try:
+        with Reader(p) as reader:
+            conns = [c for c in reader.connections if c.topic in (image_topic, pose_topic)]
+            for conn, ts, raw in reader.messages(connections=conns):
+                msg = store.deserialize_cdr(raw, conn.msgtype)
+                if conn.topic == pose_topic:
+                    if conn.msgtype == POSE_TYPE:
+                        t, q, child = msg.pose.position, msg.pose.orientation, ""
+                    else:
+                        t, q, child = msg.transform.translation, msg.transform.rotation, str(msg.child_frame_id)
+                    yield BagPose(int(ts), conn.msgtype, _stamp_ns(msg.header), str(msg.header.frame_id), child,
+                                  (float(t.x), float(t.y), float(t.z)),
+                                  (float(q.x), float(q.y), float(q.z), float(q.w)))
+                elif conn.msgtype == IMAGE_TYPE:
+                    fields = {"height": msg.height, "width": msg.width, "encoding": msg.encoding,
+                              "is_bigendian": msg.is_bigendian, "step": msg.step, "data": bytes(msg.data)}
+                    yield BagImage(int(ts), conn.msgtype, fields, str(msg.header.frame_id), _stamp_ns(msg.header))
+                else:
+                    fields = {"format": msg.format, "data": bytes(msg.data)}
+                    yield BagImage(int(ts), conn.msgtype, fields, str(msg.header.frame_id), _stamp_ns(msg.header))
+    except BagError:
+        raise
+    except Exception as e:
+        raise BagError(f"bag {p} is corrupt or truncated: {type(e).__name__}: {e}") from None
+
+
+def arm_schedule(n_images: int, rate: float, hold: float, pose_rate: float, t0_ns: int = 1_700_000_000 * 10**9
+                 ) -> list[tuple[int, int, str]]:
+    """The messages of an arm session bag in recorded order: (stamp ns, pose index, "pose" |
+    "image"). The arm rests ``hold`` seconds at each pose; the camera gives max(1, round(hold *
+    rate)) frames of it at ``rate`` Hz; the driver publishes the pose at ``pose_rate`` Hz over the
+    hold and at every frame's stamp (frame and pose stamps equal). At equal stamps the pose
+    comes first."""
+    if rate <= 0 or pose_rate <= 0 or hold <= 0:
+        raise BagError("rate, pose rate and hold must be positive")
+    frames = max(1, round(hold * rate))
+    span = max(hold, frames / rate)
+    out: list[tuple[int, int, str]] = []
+    for k in range(n_images):
+        start = t0_ns + round(k * span * 1e9)
+        img = {start + round(j * 1e9 / rate) for j in range(frames)}
+        pose = {start + round(j * 1e9 / pose_rate) for j in range(max(1, round(span * pose_rate)))} | img
+        out += [(t, k, "pose") for t in pose] + [(t, k, "image") for t in img]
+    return sorted(out, key=lambda m: (m[0], m[2] == "image"))
+
+
+def write_arm_bag(out: str | Path, images: list[Path], poses_yaml: str | Path, topic: str = "/image",
+                  pose_topic: str = "/tool_pose", storage: str = "sqlite3", compressed: bool = False,
+                  rate: float = 5.0, hold: float = 1.0, pose_rate: float = 20.0, frame_id: str = "camera",
+                  pose_type: str = "pose") -> Path:
+    """A recorded robot-arm session: every image (matched by file name to an entry of
+    POSES.yaml, :func:`~.hand_eye_yaml.read_poses_yaml`) shown while the arm rests at its pose
+    (:func:`arm_schedule`), with the tool pose in the base frame as geometry_msgs/PoseStamped
+    (``pose_type`` "pose": header.frame_id = the base) or TransformStamped ("transform":
+    child_frame_id = the tool) on ``pose_topic``."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys.stores.ros2_jazzy import builtin_interfaces__msg__Time as Time
+    from rosbags.typesys.stores.ros2_jazzy import geometry_msgs__msg__Point as Point
+    from rosbags.typesys.stores.ros2_jazzy import geometry_msgs__msg__Pose as Pose
+    from rosbags.typesys.stores.ros2_jazzy import geometry_msgs__msg__PoseStamped as PoseStamped
+    from rosbags.typesys.stores.ros2_jazzy import geometry_msgs__msg__Quaternion as Quaternion
+    from rosbags.typesys.stores.ros2_jazzy import geometry_msgs__msg__Transform as TransformMsg
+    from rosbags.typesys.stores.ros2_jazzy import geometry_msgs__msg__TransformStamped as TransformStamped
+    from rosbags.typesys.stores.ros2_jazzy import geometry_msgs__msg__Vector3 as Vector3
+    from rosbags.typesys.stores.ros2_jazzy import sensor_msgs__msg__CompressedImage as CompressedImage
+    from rosbags.typesys.stores.ros2_jazzy import sensor_msgs__msg__Image as Image
+    from rosbags.typesys.stores.ros2_jazzy import std_msgs__msg__Header as Header
+
+    from .hand_eye_yaml import PosesYamlError, read_poses_yaml
+
+    if storage not in ("sqlite3", "mcap"):
+        raise BagError(f"storage must be sqlite3 or mcap, got {storage!r}")
+    if pose_type not in ("pose", "transform"):
+        raise BagError(f"pose type must be pose or transform, got {pose_type!r}")
+    try:
+        base, tool, table = read_poses_yaml(poses_yaml)
+    except PosesYamlError as e:
+        raise BagError(str(e)) from None
+    missing = [p.name for p in images if p.name not in table]
+    if missing:
+        raise BagError(f"{poses_yaml} has no pose for {', '.join(missing[:5])}"
+                       + (f" and {len(missing) - 5} more" if len(missing) > 5 else ""))
+    out_p = Path(out)
+    if out_p.exists():
+        raise BagError(f"{out_p} exists; rosbag2 writes a new folder")
+    schedule = arm_schedule(len(images), rate, hold, pose_rate)
+    store = _typestore()
+    plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
+    img_type = COMPRESSED_TYPE if compressed else IMAGE_TYPE
+    msg_pose_type = POSE_TYPE if pose_type == "pose" else TRANSFORM_TYPE
+    payload: dict[int, tuple[str, Any]] = {}  # each file read once, sent at every frame of its pose
+
+    def image_msg(k: int, header: Any) -> Any:
+        path = images[k]
+        if k not in payload:
+            if compressed:
+                data = path.read_bytes()
+                if cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED) is None:
+                    raise BagError(f"{path}: not a readable image")
+                payload[k] = ("png" if path.suffix.lower() == ".png" else "jpeg", np.frombuffer(data, np.uint8))
+            else:
+                payload[k] = ("", read_grey(path))
+        fmt, data = payload[k]
+        if compressed:
+            return CompressedImage(header=header, format=fmt, data=data)
+        enc = "mono16" if data.dtype == np.uint16 else "mono8"
+        return Image(header=header, height=data.shape[0], width=data.shape[1], encoding=enc, is_bigendian=0,
+                     step=data.shape[1] * data.dtype.itemsize,
+                     data=np.frombuffer(np.ascontiguousarray(data).tobytes(), np.uint8))
+
+    with Writer(out_p, version=9, storage_plugin=plugin) as writer:
+        img_conn = writer.add_connection(topic, img_type, typestore=store)
+        pose_conn = writer.add_connection(pose_topic, msg_pose_type, typestore=store)
+        for ts, k, kind in schedule:
+            stamp = Time(sec=ts // 10**9, nanosec=ts % 10**9)
+            if kind == "image":
+                msg = image_msg(k, Header(stamp=stamp, frame_id=frame_id))
+                writer.write(img_conn, ts, store.serialize_cdr(msg, img_type))
+                continue
+            T = table[images[k].name]
+            t, q = T.translation, T.quat
+            header = Header(stamp=stamp, frame_id=base)
+            if pose_type == "pose":
+                pmsg: Any = PoseStamped(header=header, pose=Pose(
+                    position=Point(x=float(t[0]), y=float(t[1]), z=float(t[2])),
+                    orientation=Quaternion(x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))))
+            else:
+                pmsg = TransformStamped(header=header, child_frame_id=tool, transform=TransformMsg(
+                    translation=Vector3(x=float(t[0]), y=float(t[1]), z=float(t[2])),
+                    rotation=Quaternion(x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))))
+            writer.write(pose_conn, ts, store.serialize_cdr(pmsg, msg_pose_type))
     return out_p

@@ -13,8 +13,10 @@ from typing import Any
 import numpy as np
 import yaml
 
+from ..errors import PascalCalibError
 
-class CameraYamlError(ValueError):
+
+class CameraYamlError(PascalCalibError):
     """The file is not a camera_calibration_parsers YAML."""
 
 

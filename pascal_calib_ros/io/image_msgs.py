@@ -13,6 +13,8 @@ from typing import Any
 import cv2
 import numpy as np
 
+from ..errors import PascalCalibError
+
 MAX_PIXELS = 100_000_000  # refuse absurd sizes before allocating
 
 _BAYER_TO_GREY = {
@@ -40,7 +42,7 @@ _ENCODINGS: dict[str, tuple[int, type, int | None]] = {
 SUPPORTED_ENCODINGS = tuple(sorted(_ENCODINGS))
 
 
-class ImageConversionError(ValueError):
+class ImageConversionError(PascalCalibError):
     """The message cannot be turned into an image; the message says why."""
 
 

@@ -7,10 +7,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from ..errors import PascalCalibError
+
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm")
 
 
-class ImageReadError(ValueError):
+class ImageReadError(PascalCalibError):
     """The file is missing, unreadable or not an image."""
 
 

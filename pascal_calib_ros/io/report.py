@@ -13,20 +13,11 @@ from typing import Any
 
 import numpy as np
 
+from ..calibrate.diagnostics import distortion_field, observed_field_mask
 from ..calibrate.pipeline import CalibrationResult
 from ..detect.rings import Detection
-from ..geometry.camera import Camera
 
-
-def distortion_field(cam: Camera, step: int = 32) -> tuple[np.ndarray, np.ndarray]:
-    """Grid of pixels (N, 2) and the displacement (N, 2) from where an ideal pinhole camera with
-    the same K would image the same ray to where the distorted camera images it."""
-    us, vs = np.meshgrid(np.arange(step / 2, cam.width, step), np.arange(step / 2, cam.height, step))
-    uv = np.stack([us.ravel(), vs.ravel()], 1)
-    xn = cam.undistort_pixels(uv)
-    ideal = np.stack([cam.K[0, 0] * xn[:, 0] + cam.K[0, 1] * xn[:, 1] + cam.K[0, 2],
-                      cam.K[1, 1] * xn[:, 1] + cam.K[1, 2]], 1)
-    return uv, uv - ideal
+FIELD_MARGIN = 30.0  # px around the observed field where the distortion field is still drawn
 
 
 def _normals(points: np.ndarray) -> np.ndarray:
@@ -48,14 +39,19 @@ def per_circle_rms(res: CalibrationResult) -> dict[str, float]:
     return {names[c]: float(rms[c]) for c in np.argsort(-rms) if count[c]}
 
 
+def _observed_field(res: CalibrationResult, margin: float = 0.0) -> np.ndarray:
+    return observed_field_mask(res.edge_points, res.width, res.height, margin)
+
+
 def report_numbers(res: CalibrationResult, dets: list[Detection]) -> dict[str, Any]:
-    cam = Camera(res.K, res.D, res.width, res.height)
-    _, disp = distortion_field(cam)
-    mag = np.linalg.norm(disp, axis=1)
-    covered = _coverage_fraction(res, dets)
+    cam = res.camera()
+    _, disp = distortion_field(cam, mask=_observed_field(res, FIELD_MARGIN))
+    mag = np.linalg.norm(disp, axis=1) if len(disp) else np.zeros(1)
+    covered = float(_observed_field(res).mean()) if res.edge_points else 0.0
     return {
         "image": {"width": res.width, "height": res.height},
-        "method": res.method, "refined": res.refined, "distortion_model": res.distortion_model,
+        "method": res.method, "refined": res.refined, "distortion_model": res.model,
+        "distortion_choice": res.distortion_model,
         "K": res.K.tolist(), "D": res.D.tolist(), "std": res.std,
         "rms_px": res.rms, "degeneracy_ratio": res.degeneracy_ratio, "warnings": res.warnings,
         "views": [{"name": v.name, "used": v.used, "reason": v.reason, "rms_px": v.rms, "edge_offset_px": v.edge_offset}
@@ -63,21 +59,12 @@ def report_numbers(res: CalibrationResult, dets: list[Detection]) -> dict[str, A
         "residuals": {"per_view_rms_px": [float(np.sqrt(np.mean(r * r))) for r in res.edge_residuals],
                       "per_circle_rms_px": per_circle_rms(res),
                       "max_abs_px": float(max((np.max(np.abs(r)) for r in res.edge_residuals), default=0.0))},
-        "coverage": {"image_fraction_inside_some_view": covered},
-        "distortion_field": {"max_px": float(mag.max()), "mean_px": float(mag.mean())},
+        "coverage": {"observed_fraction": covered, "image_fraction_inside_some_view": covered},
+        "distortion_field": {"over": f"observed field + {FIELD_MARGIN:.0f} px", "max_px": float(mag.max()),
+                             "mean_px": float(mag.mean())},
         "target_shape": {"estimated": {n: res.shape[n] for n in res.shape_std}, "std": res.shape_std,
                          "change_against_flat_sheet": res.shape_effect} if res.shape else None,
     }
-
-
-def _coverage_fraction(res: CalibrationResult, dets: list[Detection]) -> float:
-    import cv2
-
-    mask = np.zeros((res.height, res.width), np.uint8)
-    for d in dets:
-        if d.ok and d.edges:
-            cv2.fillPoly(mask, [np.round(d.edges[0].points).astype(np.int32)], 1)
-    return float(mask.mean())
 
 
 def write_report(res: CalibrationResult, dets: list[Detection], out_dir: str | Path) -> tuple[Path, Path]:
@@ -108,18 +95,25 @@ def write_report(res: CalibrationResult, dets: list[Detection], out_dir: str | P
     for k, d in enumerate(x for x in dets if x.ok):
         for e in d.edges:
             b.plot(*np.vstack([e.points, e.points[:1]]).T, "-", lw=0.8, color=f"C{k % 10}")
-    b.set_title(f"coverage: {100 * numbers['coverage']['image_fraction_inside_some_view']:.0f} % of the image "
-                f"inside some view's target ({res.n_used} views)")
-    # distortion field
+    field = _observed_field(res)
+    if field.any():
+        for axx in (b, ax[1][0]):
+            axx.contour(field.astype(float), levels=[0.5], colors="k", linewidths=1.0, linestyles="--")
+    b.set_title(f"coverage: {100 * numbers['coverage']['observed_fraction']:.0f} % of the image "
+                f"in the observed field (dashed; {res.n_used} views)")
+    # distortion field, over the observed field only (a fold outside it must not set the scale)
     c = ax[1][0]
-    uv, disp = distortion_field(Camera(res.K, res.D, w, h))
+    uv, disp = distortion_field(res.camera(), mask=_observed_field(res, FIELD_MARGIN))
+    if not len(uv):
+        uv, disp = np.zeros((1, 2)), np.zeros((1, 2))
     mag = np.linalg.norm(disp, axis=1)
     arrow = max(float(mag.max()) / 28.0, 1e-9)  # the longest arrow spans about one grid step
     q = c.quiver(uv[:, 0], uv[:, 1], disp[:, 0], disp[:, 1], mag, angles="xy", scale_units="xy", scale=arrow,
                  cmap="viridis")
     fig.colorbar(q, ax=c, label="displacement (px)")
     c.plot(res.K[0, 2], res.K[1, 2], "r+", ms=15)
-    c.set_title(f"distortion field (arrows x{1 / arrow:.2g}; max {mag.max():.1f} px); + principal point")
+    c.set_title(f"{res.model} distortion against its ideal lens, observed field\n"
+                f"(arrows x{1 / arrow:.2g}; max {mag.max():.1f} px); + principal point", fontsize=10)
     for axx in (a, b, c):
         axx.set_xlim(0, w)
         axx.set_ylim(h, 0)
@@ -127,7 +121,7 @@ def write_report(res: CalibrationResult, dets: list[Detection], out_dir: str | P
     # parameters
     d_ax = ax[1][1]
     d_ax.axis("off")
-    names = ["fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3"]
+    names = ["fx", "fy", "cx", "cy", *res.camera().lens.coefficients]
     vals = [res.K[0, 0], res.K[1, 1], res.K[0, 2], res.K[1, 2], *res.D]
     lines = [f"method {res.method}{' + refinement' if res.refined else ''}, {res.n_used}/{len(res.views)} views",
              f"RMS {res.rms:.4f} px, degeneracy ratio {res.degeneracy_ratio:.3f}", ""]

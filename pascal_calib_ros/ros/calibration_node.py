@@ -4,9 +4,20 @@ Subscribes ``image`` (sensor_msgs/Image) or ``image/compressed`` (``transport:=c
 detects the target in a worker thread (only the newest frame waits; older ones are dropped and
 counted), keeps the features of views that add diversity, reports progress on ``~/status``
 (diagnostic_msgs/DiagnosticArray), draws detections on ``~/detections`` while someone listens,
-and offers ``~/calibrate``, ``~/reset`` and ``~/commit`` (std_srvs/Trigger). A good result is
-published on ``~/camera_info`` (reliable, transient local) and written as
-camera_calibration_parsers YAML; a failed calibration publishes nothing and keeps the previous.
+acknowledges every frame the detector has examined on ``~/examined_frames`` (std_msgs/Header,
+the frame's own header; ``replay_node``'s lock-step mode waits for it), and offers
+``~/calibrate``, ``~/reset`` and ``~/commit`` (std_srvs/Trigger). A good result is published on
+``~/camera_info`` (reliable, transient local) and written as camera_calibration_parsers YAML; a
+failed calibration publishes nothing and keeps the previous.
+
+Robot-arm sessions (:mod:`..calibrate.arm_session`): ``~/capture`` (std_srvs/Trigger) stores the
+next still frame as a view whatever it resembles (``collect:=on_capture``: only captures store
+views); frames are used only while the target (and the robot) stand still (``max_motion_px``);
+with ``robot_pose_topic`` (geometry_msgs/PoseStamped or TransformStamped: the tool in the robot
+base) every view gets the robot pose at its image stamp, and with ``hand_eye`` (eye_in_hand |
+eye_to_hand) ``~/calibrate`` also solves the hand-eye transform and publishes it on
+``~/hand_eye`` (geometry_msgs/TransformStamped, reliable, transient local). TF lookup of the
+robot pose is not implemented: the pose topic is the supported (and tested) path.
 """
 
 from __future__ import annotations
@@ -29,12 +40,25 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 from sensor_msgs.srv import SetCameraInfo
+from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
+from ..calibrate.arm_session import (
+    MOVING,
+    CaptureSlot,
+    PoseBuffer,
+    StillnessGate,
+    capture_is_final,
+    hand_eye_doubts,
+    stored_message,
+)
 from ..calibrate.collector import ViewCollector
 from ..calibrate.pipeline import METHODS, CalibrationError, CalibrationOptions, CalibrationResult, calibrate
 from ..calibrate.refine import DISTORTION_MODELS, SHAPE_CHOICES
-from ..detect.rings import Detection, detect_target
+from ..detect.rings import Detection, DetectionParams, detect_target
+from ..geometry.camera import rectified_projection
+from ..geometry.lens import lens_model
+from ..geometry.transform import Transform, TransformError
 from ..io.camera_yaml import CameraInfoData, write_camera_yaml
 from ..io.image_msgs import ImageConversionError, compressed_to_grey, grey_to_image_fields, image_to_grey
 from ..targets import Target, TargetError, resolve_target
@@ -63,7 +87,8 @@ PARAMS = (
     Param("calibration_file", "", "YAML path; empty: <output_dir>/<camera_name>.yaml, else "
           "~/.ros/camera_info/<camera_name>.yaml"),
     Param("zero_skew", True, "estimate K with zero skew"),
-    Param("distortion_model", "plumb_bob", "plumb_bob | plumb_bob_k3_fixed | radial | none",
+    Param("distortion_model", "plumb_bob", "lens model: plumb_bob | plumb_bob_k3_fixed | radial | none | "
+          "rational_polynomial | equidistant (fisheye)",
           choices=tuple(DISTORTION_MODELS)),
     Param("target_shape", "", "also estimate the printed sheet's shape (grid and checkerboard targets): "
           "warp (out-of-plane bend), pitch (y/x scale ratio), all; empty: nominal flat sheet",
@@ -76,8 +101,26 @@ PARAMS = (
     Param("set_camera_info_service", "camera/set_camera_info", "driver's sensor_msgs/SetCameraInfo service"),
     Param("min_view_distance", 0.08, "diversity threshold between stored views (L1 in x, y, size, skew)",
           float_range=(0.0, 2.0)),
+    Param("collect", "auto", "auto: store frames that add diversity | on_capture: only ~/capture stores views",
+          choices=("auto", "on_capture")),
+    Param("capture_timeout", 5.0, "~/capture waits this many seconds for a still frame", float_range=(0.1, 600.0)),
+    Param("max_motion_px", -1.0, "a frame is used only if the target's features moved less than this since "
+          "the previous frame (and the robot did not move); 0: no check; -1: 0.5 px with robot_pose_topic "
+          "or collect:=on_capture, else no check", float_range=(-1.0, 1000.0)),
+    Param("robot_pose_topic", "", "geometry_msgs/PoseStamped or TransformStamped of the tool in the robot base "
+          "(empty: no robot poses)"),
+    Param("pose_max_age", 0.1, "a view's robot pose is interpolated from samples at most this many seconds "
+          "from its image stamp", float_range=(0.001, 10.0)),
+    Param("robot_base_frame", "base_link", "the robot base frame (robot poses must be in it)"),
+    Param("robot_tool_frame", "tool0", "the robot tool (flange) frame the poses describe"),
+    Param("camera_frame", "camera_optical_frame", "child frame of the published hand-eye transform"),
+    Param("hand_eye", "", "'' (off) | eye_in_hand | eye_to_hand: ~/calibrate also solves hand-eye",
+          choices=("", "eye_in_hand", "eye_to_hand")),
 )
-READ_ONLY = {"transport"}
+READ_ONLY = {"transport", "robot_pose_topic"}
+POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+TRANSFORM_STAMPED = "geometry_msgs/msg/TransformStamped"
+MOTION_AUTO_PX = 0.5
 
 
 class CalibrationNode(Node):
@@ -105,10 +148,24 @@ class CalibrationNode(Node):
         self.frames_received = 0
         self.frames_dropped = 0
         self.frames_bad = 0
+        self.frames_examined = 0
+        # frames received / dropped before the last ~/reset (the refusal speaks of this session)
+        self._session_start = (0, 0)
         self.last_error = ""
         self.frame_id = "camera"
         self.calibrating = threading.Lock()
         self.auto_done_at = -1
+
+        # robot-arm sessions
+        self.pose_topic = str(self.p("robot_pose_topic"))
+        self.poses: PoseBuffer | None = PoseBuffer() if self.pose_topic else None
+        self.pose_sub: Any = None
+        self.pose_type = ""
+        self.pose_error = ""
+        self.poses_ignored = 0
+        self.gate = StillnessGate(self._max_motion(self.p("max_motion_px"), self.p("collect"), self.pose_topic))
+        self.captures = CaptureSlot()
+        self.hand_eye_line = ""
 
         self._pending: Any = None
         self._pending_cv = threading.Condition()
@@ -120,11 +177,20 @@ class CalibrationNode(Node):
         self.pub_info = self.create_publisher(CameraInfo, "~/camera_info", latched)
         self.pub_status = self.create_publisher(DiagnosticArray, "~/status", 10)
         self.pub_det = self.create_publisher(Image, "~/detections", 2)
+        # one message per examined frame; transient local so that an acknowledgement sent before
+        # a subscriber finished discovery still reaches it (lock-step replays wait for it)
+        examined_qos = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE,
+                                  durability=DurabilityPolicy.TRANSIENT_LOCAL, history=HistoryPolicy.KEEP_LAST)
+        self.pub_examined = self.create_publisher(Header, "~/examined_frames", examined_qos)
+        from geometry_msgs.msg import TransformStamped
+
+        self.pub_hand_eye = self.create_publisher(TransformStamped, "~/hand_eye", latched)
 
         services = ReentrantCallbackGroup()
         self.create_service(Trigger, "~/calibrate", self._srv_calibrate, callback_group=services)
         self.create_service(Trigger, "~/reset", self._srv_reset, callback_group=services)
         self.create_service(Trigger, "~/commit", self._srv_commit, callback_group=services)
+        self.create_service(Trigger, "~/capture", self._srv_capture, callback_group=services)
         self.set_info_client = self.create_client(SetCameraInfo, self.p("set_camera_info_service"),
                                                   callback_group=services)
 
@@ -135,6 +201,10 @@ class CalibrationNode(Node):
         self._ensure_subscription()
         self.create_timer(1.0, self._ensure_subscription, callback_group=MutuallyExclusiveCallbackGroup())
         self.create_timer(1.0, self.publish_status, callback_group=MutuallyExclusiveCallbackGroup())
+        self._pose_group = MutuallyExclusiveCallbackGroup()
+        if self.pose_topic:
+            self._ensure_pose_subscription()
+            self.create_timer(0.5, self._ensure_pose_subscription, callback_group=MutuallyExclusiveCallbackGroup())
         self._worker.start()
         self.get_logger().info(
             f"target {self.target.name}, method {self.method}, listening on "
@@ -178,7 +248,23 @@ class CalibrationNode(Node):
         mx = values.get("max_views", self.p("max_views") if self.has_parameter("max_views") else 1000)
         if int(mx) < int(mn):
             problems.append(f"max_views {mx} < min_views {mn}")
+        he = values.get("hand_eye", self.p("hand_eye") if self.has_parameter("hand_eye") else "")
+        topic = values.get("robot_pose_topic", self.p("robot_pose_topic")
+                           if self.has_parameter("robot_pose_topic") else "")
+        if he and not topic:
+            problems.append(f"hand_eye={he!r} needs robot poses: set robot_pose_topic")
+        motion = values.get("max_motion_px")
+        if motion is not None and float(motion) < 0 and float(motion) != -1.0:
+            problems.append(f"max_motion_px={motion}: 0 (off), -1 (auto) or a positive threshold in px")
         return problems
+
+    @staticmethod
+    def _max_motion(value: Any, collect: Any, pose_topic: str | None = None) -> float:
+        """The stillness threshold in force (-1: 0.5 px for robot sessions, else off)."""
+        v = float(value)
+        if v >= 0:
+            return v
+        return MOTION_AUTO_PX if (pose_topic or collect == "on_capture") else 0.0
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         values = {p.name: p.value for p in params}
@@ -195,6 +281,9 @@ class CalibrationNode(Node):
                 self.collector.max_views = int(values["max_views"])
             if "min_view_distance" in values:
                 self.collector.min_distance = float(values["min_view_distance"])
+            if "max_motion_px" in values or "collect" in values:
+                self.gate.max_motion_px = self._max_motion(values.get("max_motion_px", self.p("max_motion_px")),
+                                                           values.get("collect", self.p("collect")), self.pose_topic)
         return SetParametersResult(successful=True)
 
     # -- image input ------------------------------------------------------------------
@@ -229,7 +318,7 @@ class CalibrationNode(Node):
             self.frames_received += 1
             if self._pending is not None:
                 self.frames_dropped += 1
-            self._pending = msg
+            self._pending = (msg, time.monotonic())
             self._pending_cv.notify()
 
     def _work(self) -> None:
@@ -237,17 +326,30 @@ class CalibrationNode(Node):
             with self._pending_cv:
                 while self._pending is None and not self._stop.is_set():
                     self._pending_cv.wait(0.2)
-                msg, self._pending = self._pending, None
-            if msg is None:
+                pending, self._pending = self._pending, None
+            if pending is None:
                 continue
+            msg, received_at = pending
             try:
-                self._process(msg)
+                self._process(msg, received_at)
             except Exception as e:  # a bad frame must never stop the node
                 self.frames_bad += 1
                 self.last_error = f"frame processing failed: {type(e).__name__}: {e}"
                 self.get_logger().error(self.last_error)
+            finally:
+                self._acknowledge(msg)
 
-    def _process(self, msg: Any) -> None:
+    def _acknowledge(self, msg: Any) -> None:
+        """Count the examined frame and publish its header on ``~/examined_frames``."""
+        with self._pending_cv:
+            self.frames_examined += 1
+        try:
+            self.pub_examined.publish(msg.header)
+        except Exception as e:  # shutting down, or a header that cannot be published
+            self.get_logger().warn(f"cannot acknowledge frame: {type(e).__name__}: {e}",
+                                   throttle_duration_sec=5.0)
+
+    def _process(self, msg: Any, received_at: float = 0.0) -> None:
         try:
             img = compressed_to_grey(msg) if isinstance(msg, CompressedImage) else image_to_grey(msg)
         except ImageConversionError as e:
@@ -261,11 +363,34 @@ class CalibrationNode(Node):
             self.frame_id = msg.header.frame_id
         with self.lock:
             target = self.target
-        det = detect_target(img, target, name=f"frame_{self.frames_received:06d}")
+        params = DetectionParams.for_lens(lens_model(str(self.p("distortion_model"))).wide)
+        det = detect_target(img, target, params, name=f"frame_{self.frames_received:06d}")
+        stamp_ns = int(msg.header.stamp.sec) * 10**9 + int(msg.header.stamp.nanosec)
+        verdict = self.gate.examine(det, stamp_ns, self.poses, float(self.p("pose_max_age")))
+        capture = self.captures.for_frame(received_at)
+        answer: tuple[bool, str] | None = None
+        accepted = False
         with self.lock:
-            accepted, _ = self.collector.offer(det)
+            if capture is not None:
+                if capture_is_final(verdict, self.poses is not None):
+                    if verdict.usable:
+                        accepted, why = self.collector.offer(det, verdict.robot_pose, force=True)
+                    else:
+                        accepted, why = self.collector._reject(verdict.reason)
+                    answer = (accepted, stored_message(len(self.collector.views) - 1, det, verdict.robot_pose)
+                              if accepted else f"nothing stored: {why}")
+                else:
+                    self.collector._reject(verdict.reason)
+                    self.captures.note(capture, verdict.reason)
+            elif self.p("collect") == "auto":
+                if verdict.usable:
+                    accepted, _ = self.collector.offer(det, verdict.robot_pose)
+                else:
+                    self.collector._reject(verdict.reason)
             n = len(self.collector.views)
             ready = self.collector.ready
+        if capture is not None and answer is not None:
+            self.captures.finish(capture, *answer)
         if accepted and self.p("output_dir"):
             out = Path(self.p("output_dir")) / "frames"
             out.mkdir(parents=True, exist_ok=True)
@@ -292,6 +417,22 @@ class CalibrationNode(Node):
         self.pub_det.publish(out)
 
     # -- status -------------------------------------------------------------------------
+    def session_frames(self) -> tuple[int, int]:
+        """(frames received, frames dropped unexamined) since the start or the last ``~/reset``."""
+        with self._pending_cv:
+            received, dropped = self.frames_received, self.frames_dropped
+        return received - self._session_start[0], dropped - self._session_start[1]
+
+    def dropped_note(self) -> str:
+        """What the dropped frames of this session mean and what to do; empty if none."""
+        received, dropped = self.session_frames()
+        if not dropped:
+            return ""
+        return (f"{dropped} of {received} frame(s) arrived while the detector was busy and were dropped "
+                "unexamined (only the newest frame waits). Replaying a recording: use replay_node's "
+                "lock-step mode (mode:=lockstep, the default) or a lower rate; a live camera: hold "
+                "each pose longer")
+
     def publish_status(self) -> None:
         with self.lock:
             cov = self.collector.coverage()
@@ -300,29 +441,45 @@ class CalibrationNode(Node):
             rejected = dict(self.collector.rejected)
             last_rej = self.collector.last_rejection
             result = self.result
+        _, session_dropped = self.session_frames()
         st = DiagnosticStatus(name=f"{self.get_name()}: calibration", hardware_id=str(self.p("camera_name")))
         if self.calibrating.locked():
             st.level, st.message = DiagnosticStatus.OK, "calibrating"
+        elif self.pose_error:
+            st.level, st.message = DiagnosticStatus.ERROR, self.pose_error
         elif ready:
             st.level, st.message = DiagnosticStatus.OK, f"ready: {n} views; call ~/calibrate"
         else:
             st.level = DiagnosticStatus.WARN
             st.message = (f"collecting: {n}/{self.collector.min_views} views, coverage "
                           + " ".join(f"{k} {v:.2f}" for k, v in cov.items()))
+            if session_dropped:
+                st.message += (f"; {session_dropped} frame(s) dropped while the detector was busy "
+                               "(replay: use lock-step or a lower rate)")
         kv = {
             "views_accepted": n, "views_rejected": sum(rejected.values()), "ready": ready,
-            "frames_received": self.frames_received, "frames_dropped": self.frames_dropped,
+            "frames_received": self.frames_received, "frames_examined": self.frames_examined,
+            "frames_dropped": self.frames_dropped, "frames_dropped_session": session_dropped,
             "frames_bad": self.frames_bad, "last_rejection": last_rej, "last_error": self.last_error,
+            "frames_dropped_note": self.dropped_note(),
             **{f"coverage_{k}": round(v, 3) for k, v in cov.items()},
             **{f"rejected: {k}": v for k, v in sorted(rejected.items())},
             "result": result.summary_line() if result else "",
+            "collect": self.p("collect"), "max_motion_px": self.gate.max_motion_px,
+            "captures_stored": self.captures.stored, "captures_refused": self.captures.refused,
         }
+        if self.pose_topic:
+            kv.update({"robot_pose_topic": self.resolve_topic_name(self.pose_topic),
+                       "robot_pose_type": self.pose_type or "unknown (no publisher seen)",
+                       "robot_poses_received": self.poses.received if self.poses else 0,
+                       "robot_poses_ignored": self.poses_ignored, "robot_pose_error": self.pose_error,
+                       "views_with_robot_pose": sum(p is not None for p in self.collector.robot_poses)})
+        if self.p("hand_eye"):
+            kv["hand_eye"] = self.hand_eye_line
         st.values = [KeyValue(key=k, value=str(v)) for k, v in kv.items()]
         self.pub_status.publish(DiagnosticArray(header=self._header(), status=[st]))
 
-    def _header(self) -> Any:
-        from std_msgs.msg import Header
-
+    def _header(self) -> Header:
         return Header(stamp=self.get_clock().now().to_msg(), frame_id=self.frame_id)
 
     # -- services -------------------------------------------------------------------------
@@ -332,17 +489,35 @@ class CalibrationNode(Node):
         try:
             with self.lock:
                 views = list(self.collector.views)
+                robot_poses = list(self.collector.robot_poses)
                 target = self.target
                 min_views = self.collector.min_views
+                rejected = dict(self.collector.rejected)
             if len(views) < min_views:
-                msg = (f"{len(views)} view(s) collected; need {min_views}. Move the target through the image "
-                       f"(rejections: {dict(self.collector.rejected) or 'none'})")
+                rejections = f"rejections: {rejected or 'none'}"
+                dropped = self.dropped_note()
+                moving = rejected.get(MOVING, 0)
+                if dropped:
+                    msg = f"{len(views)} view(s) collected; need {min_views}. {dropped} ({rejections})"
+                elif moving and moving >= sum(rejected.values()) / 2:
+                    msg = (f"{len(views)} view(s) collected; need {min_views}. {moving} frame(s) were moving "
+                           f"(features moved max_motion_px {self.gate.max_motion_px:g} px or more between frames, "
+                           f"or the robot moved): hold the target and the arm still at each pose ({rejections})")
+                elif self.p("collect") == "on_capture":
+                    msg = (f"{len(views)} view(s) collected; need {min_views}. Call ~/capture at each pose "
+                           f"(collect:=on_capture; {rejections})")
+                else:
+                    msg = (f"{len(views)} view(s) collected; need {min_views}. Move the target through the "
+                           f"image ({rejections})")
                 self.get_logger().warn(f"calibration refused: {msg}")
                 return False, msg
             opts = CalibrationOptions(method=self.method, distortion=str(self.p("distortion_model")),
                                       zero_skew=bool(self.p("zero_skew")), min_views=min(min_views, len(views)),
                                       target_shape=SHAPE_CHOICES[str(self.p("target_shape"))])
             t0 = time.perf_counter()
+            mode = str(self.p("hand_eye"))
+            if mode:
+                return self._run_hand_eye(views, robot_poses, target, opts, mode, t0)
             try:
                 res = calibrate(views, target, opts)
             except CalibrationError as e:
@@ -366,6 +541,81 @@ class CalibrationNode(Node):
         finally:
             self.calibrating.release()
 
+    def _run_hand_eye(self, views: list[Detection], robot_poses: list[Transform | None], target: Target,
+                      opts: CalibrationOptions, mode: str, t0: float) -> tuple[bool, str]:
+        """Intrinsics and hand-eye in one estimate; publishes CameraInfo and ~/hand_eye only if
+        the transform can be stood behind (module docstring)."""
+        def refuse(why: str) -> tuple[bool, str]:
+            self.get_logger().warn(f"hand-eye calibration refused: {why}")
+            return False, f"hand-eye calibration failed: {why}"
+
+        if self.poses is None:
+            return refuse("no robot poses: set robot_pose_topic")
+        with_pose = sum(p is not None for p in robot_poses)
+        if with_pose < 3:
+            return refuse(f"only {with_pose} of {len(views)} view(s) have a robot pose; need 3 or more "
+                          f"(robot poses received on {self.resolve_topic_name(self.pose_topic)}: "
+                          f"{self.poses.received}{'; ' + self.pose_error if self.pose_error else ''})")
+        try:
+            from ..calibrate.handeye import HandEyeError, calibrate_hand_eye
+            from ..io.hand_eye_yaml import write_hand_eye_yaml
+        except ImportError as e:
+            return refuse(f"the hand-eye solver is not available ({e})")
+        try:
+            he = calibrate_hand_eye(views, robot_poses, target, mode, opts)
+        except HandEyeError as e:
+            return refuse(str(e))
+        except CalibrationError as e:
+            return refuse(str(e))
+        except Exception as e:  # never let a numerical failure take the node down
+            self.get_logger().error(f"hand-eye calibration crashed: {type(e).__name__}: {e}")
+            return refuse(f"{type(e).__name__}: {e}")
+        doubts = hand_eye_doubts(he)
+        if doubts:
+            return refuse("the transform is not determined well enough: " + "; ".join(doubts)
+                          + " (add views with larger rotations about different axes)")
+        dt = time.perf_counter() - t0
+        res = he.calibration
+        base, tool, cam_frame = (str(self.p("robot_base_frame")), str(self.p("robot_tool_frame")),
+                                 str(self.p("camera_frame")))
+        parent, target_frame = (tool, base) if mode == "eye_in_hand" else (base, tool)
+        info = camera_info_msg(res, str(self.p("camera_name")), self._header())
+        path = self._write_outputs(res, views)
+        he_path = (path.parent / f"{self.p('camera_name')}_hand_eye.yaml"
+                   if path.parent == Path.home() / ".ros" / "camera_info" else path.parent / "hand_eye.yaml")
+        try:
+            write_hand_eye_yaml(he_path, he, parent, cam_frame, target_frame)
+        except OSError as e:
+            return refuse(f"cannot write {he_path}: {e}")
+        X = he.hand_eye
+        from geometry_msgs.msg import TransformStamped
+
+        tf = TransformStamped(header=Header(stamp=self.get_clock().now().to_msg(), frame_id=parent),
+                              child_frame_id=cam_frame)
+        tf.transform.translation.x, tf.transform.translation.y, tf.transform.translation.z = (
+            float(v) for v in X.translation)
+        q = X.quat
+        r = tf.transform.rotation
+        r.x, r.y, r.z, r.w = (float(v) for v in q)
+        line = (f"hand_eye {mode}: {parent} -> {cam_frame} t=[{', '.join(f'{v:.5f}' for v in X.translation)}] m "
+                f"std=[{', '.join(f'{v:.3f}' for v in he.translation_std_mm)}] mm "
+                f"q=[{', '.join(f'{v:.6f}' for v in q)}] "
+                f"rot_std=[{', '.join(f'{v:.4f}' for v in he.rotation_std_deg)}] deg "
+                f"views_used={he.views_used}/{len(views)} rms={he.rms_px:.3f}px "
+                f"robot_error={he.robot_error_mm:.3f}mm/{he.robot_error_deg:.4f}deg yaml={he_path}")
+        with self.lock:
+            self.result, self.result_msg = res, info
+            self.hand_eye_line = line
+        self.pub_info.publish(info)
+        self.pub_hand_eye.publish(tf)
+        summary = f"{line}; camera: {res.summary_line()} time={dt:.2f}s yaml={path}"
+        warnings = list(dict.fromkeys([*res.warnings, *he.warnings]))
+        if warnings:
+            summary += " warnings: " + "; ".join(warnings)
+        self.get_logger().info(f"calibrated: {summary}")
+        self.publish_status()
+        return True, summary
+
     def _write_outputs(self, res: CalibrationResult, views: list[Detection]) -> Path:
         name = str(self.p("camera_name"))
         out_dir = str(self.p("output_dir"))
@@ -376,7 +626,8 @@ class CalibrationNode(Node):
             path = Path(out_dir) / f"{name}.yaml"
         else:
             path = Path.home() / ".ros" / "camera_info" / f"{name}.yaml"
-        write_camera_yaml(path, CameraInfoData(res.width, res.height, name, res.K, res.D, "plumb_bob"))
+        write_camera_yaml(path, CameraInfoData(res.width, res.height, name, res.K, res.D, res.model,
+                                               P=rectified_projection(res.camera())))
         if out_dir:
             summary = {"summary": res.summary_line(), "K": res.K.tolist(), "D": res.D.tolist(), "std": res.std,
                        "rms": res.rms, "degeneracy_ratio": res.degeneracy_ratio, "warnings": res.warnings,
@@ -397,10 +648,87 @@ class CalibrationNode(Node):
         resp.success, resp.message = self.run_calibration()
         return resp
 
+    def _srv_capture(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
+        timeout = float(self.p("capture_timeout"))
+        capture = self.captures.open(timeout)
+        if capture is None:
+            resp.success, resp.message = False, "a capture is already waiting for a still frame; try again"
+            return resp
+        resp.success, resp.message = self.captures.wait(capture, timeout)
+        if resp.success:
+            self.get_logger().info(f"capture: {resp.message}")
+        else:
+            self.get_logger().warn(f"capture: {resp.message}")
+        self.publish_status()
+        return resp
+
+    # -- robot poses ----------------------------------------------------------------------------
+    def _ensure_pose_subscription(self) -> None:
+        """Subscribe to robot_pose_topic once a publisher shows its type (PoseStamped or
+        TransformStamped); any other type is refused with the reason in the log and status."""
+        if self.pose_sub is not None or not self.pose_topic:
+            return
+        name = self.resolve_topic_name(self.pose_topic)
+        types = dict(self.get_topic_names_and_types()).get(name, [])
+        if not types:
+            return
+        if POSE_STAMPED in types:
+            from geometry_msgs.msg import PoseStamped as msg_type
+            self.pose_type = POSE_STAMPED
+        elif TRANSFORM_STAMPED in types:
+            from geometry_msgs.msg import TransformStamped as msg_type
+            self.pose_type = TRANSFORM_STAMPED
+        else:
+            error = (f"robot_pose_topic {name} has type {', '.join(types)}; expected {POSE_STAMPED} or "
+                     f"{TRANSFORM_STAMPED}: no robot poses")
+            if error != self.pose_error:
+                self.pose_error = error
+                self.get_logger().error(error)
+            return
+        infos = self.get_publishers_info_by_topic(name)
+        best_effort = any(i.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for i in infos)
+        qos = QoSProfile(depth=200, history=HistoryPolicy.KEEP_LAST,
+                         reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE)
+        self.pose_sub = self.create_subscription(msg_type, self.pose_topic, self._on_pose, qos,
+                                                 callback_group=self._pose_group)
+        self.pose_error = ""
+        self.get_logger().info(f"robot poses: subscribed to {name} ({self.pose_type}, "
+                               f"{'best-effort' if best_effort else 'reliable'})")
+
+    def _on_pose(self, msg: Any) -> None:
+        base, tool = str(self.p("robot_base_frame")), str(self.p("robot_tool_frame"))
+        fid = msg.header.frame_id.lstrip("/")
+        child = getattr(msg, "child_frame_id", "").lstrip("/")
+        if (fid and fid != base) or (child and child != tool):
+            self.poses_ignored += 1
+            got = f"{fid or '?'} -> {child}" if child else f"frame {fid}"
+            self.pose_error = (f"robot poses on {self.resolve_topic_name(self.pose_topic)} are {got}, expected "
+                               f"{base}{' -> ' + tool if child else ''} (robot_base_frame / robot_tool_frame): "
+                               "ignored")
+            self.get_logger().warn(self.pose_error, throttle_duration_sec=5.0)
+            return
+        try:
+            if hasattr(msg, "pose"):
+                t, q = msg.pose.position, msg.pose.orientation
+            else:
+                t, q = msg.transform.translation, msg.transform.rotation
+            T = Transform.from_quat((q.x, q.y, q.z, q.w), (t.x, t.y, t.z))
+        except TransformError as e:
+            self.poses_ignored += 1
+            self.pose_error = f"robot pose ignored: {e}"
+            self.get_logger().warn(self.pose_error, throttle_duration_sec=5.0)
+            return
+        if self.pose_error.startswith("robot pose"):  # the poses are usable again
+            self.pose_error = ""
+        if self.poses is not None:
+            self.poses.add(int(msg.header.stamp.sec) * 10**9 + int(msg.header.stamp.nanosec), T)
+
     def _srv_reset(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
         with self.lock:
             n = self.collector.clear()
             self.auto_done_at = -1
+        with self._pending_cv:
+            self._session_start = (self.frames_received, self.frames_dropped)
         running = " (a running calibration finishes on its own copy of the views)" if self.calibrating.locked() else ""
         resp.success, resp.message = True, f"cleared {n} view(s){running}; the last result is kept"
         self.get_logger().info(resp.message)
@@ -452,7 +780,7 @@ def main(args: list[str] | None = None) -> int:
     from .spin import run_node
 
     return run_node(CalibrationNode, (ValueError, TargetError), "pascal_calib",
-                    lambda: MultiThreadedExecutor(num_threads=4), args)
+                    lambda: MultiThreadedExecutor(num_threads=6), args)
 
 
 if __name__ == "__main__":

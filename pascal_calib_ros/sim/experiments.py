@@ -186,7 +186,7 @@ def _k_zhang(views: list[SimView]) -> np.ndarray:
     img = [v.grid.astype(np.float32).reshape(-1, 1, 2) for v in views]
     flags = (cv2.CALIB_FIX_K1 | cv2.CALIB_FIX_K2 | cv2.CALIB_FIX_K3 | cv2.CALIB_ZERO_TANGENT_DIST
              | cv2.CALIB_USE_INTRINSIC_GUESS)
-    crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 500, 1e-16)
+    crit = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 500, 1e-12)
     K0 = K_cf.copy()
     K0[0, 1] = 0.0
     rms_cv, K_cv, _, _, _ = cv2.calibrateCamera([obj] * len(views), img, (W, H), K0, np.zeros(5), flags=flags,
@@ -315,7 +315,7 @@ def pt2_literal(points5: np.ndarray, start: np.ndarray, iters: int = 80) -> np.n
             break
         step = -f * np.conj(J) / n2
         z = z + step
-        if np.linalg.norm(step) < 1e-14:
+        if np.linalg.norm(step) < 1e-12 * max(float(np.linalg.norm(z)), 1.0):
             break
     return np.linalg.solve(T, np.array([z[0], z[1], 1.0]))
 
@@ -338,7 +338,7 @@ def pt1_literal(points4: np.ndarray, start: np.ndarray, iters: int = 80) -> np.n
         J = np.stack([(res(z + dz) - r) / 1e-7 for dz in np.eye(4) * 1e-7], 1)
         step = -np.linalg.pinv(J) @ r
         z = z + step
-        if np.linalg.norm(step) < 1e-14:
+        if np.linalg.norm(step) < 1e-12 * max(float(np.linalg.norm(z)), 1.0):
             break
     return np.linalg.solve(T, np.array([z[0] + 1j * z[1], z[2] + 1j * z[3], 1.0]))
 

@@ -1,7 +1,8 @@
 """Renderer of targets with exact geometry and a simple sensor model.
 
 Each pixel centre (integer coordinates, OpenCV convention) is inverse-mapped through the camera
-(plumb_bob undistortion by Newton, ray-plane intersection) to the target plane. Edges are
+(its lens model's exact inverse to a ray, :meth:`Camera.unproject`; fisheye rays may point beyond
+90 degrees; then ray-plane intersection) to the target plane. Edges are
 anti-aliased with the box-filter coverage of the signed distance in pixels,
 coverage = clip(1/2 - d / |grad_px d|, 0, 1), exact for straight edges and to O(curvature) for
 curved ones. Then, in linear radiance: vignetting, Gaussian blur (optics/defocus); then the display
@@ -95,6 +96,7 @@ class RenderedView:
             "height": self.camera.height,
             "K": self.camera.K.tolist(),
             "D": self.camera.D.tolist(),
+            "distortion_model": self.camera.model,
             "pose": None if self.pose is None else self.pose.to_dict(),
             "sensor": asdict(self.sensor),
             **self.meta,
@@ -109,8 +111,8 @@ def plane_coordinates(camera: Camera, pose: Pose, shape: SheetShape | None = Non
     h, w = camera.height, camera.width
     us, vs = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
     uv = np.stack([us, vs], -1).reshape(-1, 2)
-    xn = camera.undistort_pixels(uv)
-    d = np.concatenate([xn, np.ones((len(xn), 1))], 1)
+    d = camera.unproject(uv)
+    d = np.where(np.isfinite(d), d, 0.0)  # pixels the lens model cannot invert see nothing
     n = pose.R[:, 2]
     denom = d @ n
     safe = np.where(np.abs(denom) > 1e-12, denom, 1.0)
@@ -253,8 +255,17 @@ def look_at_pose(target: Target, camera: Camera, pixel: tuple[float, float], siz
         np.array([0.0, 0.0, np.radians(roll_deg)]))
     extent = feature_extent(target)
     Z = camera.K[0, 0] * extent / (size_fraction * camera.width)
-    xn = camera.undistort_pixels(np.array([pixel], float))[0]
-    centre_cam = Z * np.array([xn[0], xn[1], 1.0])
+    ray = camera.unproject(np.array([pixel], float))[0]
+    # pinhole lenses: at depth Z; fisheye: at distance Z along the ray (which may point sideways,
+    # even backwards), the sheet turned to face the camera along that ray before the tilt
+    if camera.lens.wide:
+        centre_cam = Z * ray
+        axis = np.cross([0.0, 0.0, 1.0], ray)
+        s_ = float(np.linalg.norm(axis))
+        turn = rodrigues(axis / s_ * np.arctan2(s_, float(ray[2]))) if s_ > 1e-9 else np.eye(3)
+        R = turn @ R
+    else:
+        centre_cam = Z * ray / ray[2]
     t = centre_cam - R @ np.array([anchor[0], anchor[1], 0.0])
     return Pose(R, t)
 
@@ -287,12 +298,12 @@ def features_in_image(target: Target, camera: Camera, pose: Pose, margin: float 
     """True if every feature outline projects inside the image with ``margin`` px to spare."""
     P = feature_outline(target)
     X = (pose.R @ np.concatenate([P, np.zeros((len(P), 1))], 1).T).T + pose.t
-    if np.any(X[:, 2] <= 0):
+    if not camera.lens.wide and np.any(X[:, 2] <= 0):
         return False
     uv = camera.project(X)
     # reject poses where distortion folds (projection not invertible near the corners)
-    back = camera.undistort_pixels(uv)
-    if np.max(np.abs(back - X[:, :2] / X[:, 2:3])) > 1e-6:
+    back = camera.unproject(uv)
+    if not np.all(np.isfinite(back)) or np.max(np.abs(back - X / np.linalg.norm(X, axis=1, keepdims=True))) > 1e-6:
         return False
     return bool(np.all((uv[:, 0] >= margin) & (uv[:, 0] <= camera.width - 1 - margin)
                        & (uv[:, 1] >= margin) & (uv[:, 1] <= camera.height - 1 - margin)))
@@ -300,15 +311,17 @@ def features_in_image(target: Target, camera: Camera, pose: Pose, margin: float 
 
 def random_poses(target: Target, camera: Camera, n: int, rng: np.random.Generator,
                  tilt_range: tuple[float, float] = (15.0, 50.0), size_range: tuple[float, float] = (0.3, 0.6),
-                 margin: float = 10.0, max_tries: int = 2000) -> list[Pose]:
-    """A capture session: n poses with the whole target in view, varied position, size, tilt."""
+                 margin: float = 10.0, max_tries: int = 2000,
+                 pixel_range: tuple[float, float] = (0.2, 0.8)) -> list[Pose]:
+    """A capture session: n poses with the whole target in view, varied position (the anchor
+    within ``pixel_range`` of the width and height), size, tilt."""
     poses: list[Pose] = []
     tries = 0
     while len(poses) < n:
         tries += 1
         if tries > max_tries:
             raise RuntimeError("could not place the target in view; widen the ranges")
-        pixel = (rng.uniform(0.2, 0.8) * camera.width, rng.uniform(0.2, 0.8) * camera.height)
+        pixel = (rng.uniform(*pixel_range) * camera.width, rng.uniform(*pixel_range) * camera.height)
         pose = look_at_pose(target, camera, pixel, rng.uniform(*size_range), rng.uniform(*tilt_range),
                             rng.uniform(0, 360), rng.uniform(-30, 30))
         if features_in_image(target, camera, pose, margin):

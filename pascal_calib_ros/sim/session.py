@@ -45,6 +45,11 @@ class SessionSpec:
     pitch_ratio: float = 0.0
     warp_x: float = 0.0
     warp_y: float = 0.0
+    # the lens (a lens.MODELS name) and its coefficients; empty dist: plumb_bob from k1 below
+    lens: str = "plumb_bob"
+    dist: tuple[float, ...] = ()
+    # where the target's centre is placed, as a fraction of the width and height
+    pixel_range: tuple[float, float] = (0.2, 0.8)
 
     def sheet_shape(self, target: Target) -> SheetShape | None:
         """The sheet's shape over the frame of the target's features, or None if nominal."""
@@ -56,9 +61,12 @@ class SessionSpec:
         """Ground-truth camera: slightly non-square pixels, off-centre principal point; with k1,
         a plausible k2 and small tangential terms."""
         f = self.focal or float(self.width)
+        cx, cy = self.width * 0.511, self.height * 0.491
+        if self.dist or self.lens != "plumb_bob":
+            return Camera.from_params(f, f * 1.0025, cx, cy, dist=list(self.dist) or None, width=self.width,
+                                      height=self.height, model=self.lens)
         sgn = float(np.sign(self.k1))
         dist = [self.k1, -0.5 * self.k1 * abs(self.k1), 0.0008 * sgn, -0.0005 * sgn, 0.0]
-        cx, cy = self.width * 0.511, self.height * 0.491
         return Camera.from_params(f, f * 1.0025, cx, cy, dist=dist if self.k1 else None,
                                   width=self.width, height=self.height)
 
@@ -67,7 +75,8 @@ def session_views(target: Target, spec: SessionSpec) -> list[tuple[str, Pose | N
     """(name, pose, sensor) for every view of the session, extras last."""
     cam = spec.camera()
     rng = np.random.default_rng(spec.seed)
-    poses = random_poses(target, cam, spec.views, rng, spec.tilt_range, spec.size_range)
+    poses = random_poses(target, cam, spec.views, rng, spec.tilt_range, spec.size_range,
+                         pixel_range=spec.pixel_range)
 
     def sensor(k: int, blur: float | None = None) -> SensorModel:
         return SensorModel(blur_sigma=spec.blur if blur is None else blur, noise_sigma=spec.noise, gamma=spec.gamma,
@@ -111,7 +120,8 @@ def render_session(target: Target, spec: SessionSpec, out_dir: Path, progress: b
         sys.stderr.write("\n")
     (out_dir / "session.json").write_text(json.dumps({
         "target": target.name, "spec": asdict(spec), "width": cam.width, "height": cam.height,
-        "K": cam.K.tolist(), "D": cam.D.tolist(), "images": [p.name for p in paths]}, indent=1))
+        "K": cam.K.tolist(), "D": cam.D.tolist(), "distortion_model": cam.model,
+        "images": [p.name for p in paths]}, indent=1))
     return paths
 
 

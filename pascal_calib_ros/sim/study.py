@@ -7,6 +7,9 @@
 - ``grids``: ring and disc grids under strong distortion, beside OpenCV's circle-grid finder.
 - ``target-shape``: sheets printed off scale or not flat, calibrated with and without the
   estimated target shape.
+- ``lenses``: a ~180 degree fisheye (equidistant) and a ~120 degree rational wide-angle lens:
+  ring and disc grids with the matching model beside OpenCV (fisheye.calibrate, calibrateCamera
+  with the rational model) on a checkerboard from the same poses; plumb_bob on the fisheye.
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ from ..calibrate.pipeline import CalibrationError, CalibrationOptions, calibrate
 from ..detect.rings import DetectionParams, detect_target
 from ..geometry.camera import Camera, calibration_errors
 from ..targets import resolve_target
-from .render import render_view
+from .render import features_in_image, render_view
 from .session import SessionSpec, render_session_views, session_views
 
 
@@ -224,14 +227,258 @@ def markdown_table(rows: list[dict[str, Any]], keys: list[str]) -> str:
     return "\n".join(lines)
 
 
-def run_study(name: str, out: Path, views: int = 15, seed: int = 1) -> None:
+@dataclass(frozen=True)
+class LensCase:
+    name: str
+    spec: SessionSpec
+    distortion: str  # CalibrationOptions.distortion of the matching model
+
+
+def lens_cases(views: int, seed: int) -> tuple[LensCase, ...]:
+    """The two lenses of :func:`lenses`, 1024x768: an equidistant fisheye of 300 px focal length
+    (190 degrees across the width, 143 down the height, rays up to 124 degrees in the corners) and
+    a rational wide-angle lens of 500 px whose model is monotonic up to 57.5 degrees from the axis
+    (115 degrees across an image circle of radius about 430 px). Targets are placed out to 5 % of
+    the image border so that some fisheye views reach beyond 90 degrees."""
+    base = SessionSpec(width=1024, height=768, views=views, seed=seed, pixel_range=(0.05, 0.95),
+                       size_range=(0.25, 0.5))
+    return (
+        LensCase("fisheye 190 deg (equidistant)",
+                 replace(base, focal=300, lens="equidistant", dist=(0.02, -0.005, 0.001, -0.0002)), "equidistant"),
+        LensCase("wide-angle 115 deg (rational)",
+                 replace(base, focal=500, lens="rational_polynomial",
+                         dist=(0.6, -0.05, 0.0005, -0.0003, 0.0, 0.95, 0.1, 0.0)), "rational_polynomial"),
+    )
+
+
+LENS_COLUMNS = ("lens", "target", "method", "views", "fx_err_pct", "fy_err_pct", "pp_err_px", "model_err_px",
+                "model_err_our_field_px", "rms", "max_ray_deg", "views_beyond_90", "field_pct", "note", "error")
+
+
+def _hull_mask(point_sets: list[np.ndarray], width: int, height: int) -> np.ndarray:
+    """Union of the convex hulls of each view's points: the observed field, (height, width) bool."""
+    import cv2
+
+    mask = np.zeros((height, width), np.uint8)
+    for p in point_sets:
+        p = np.asarray(p, float).reshape(-1, 2)
+        if len(p) >= 3:
+            hull = cv2.convexHull(p.astype(np.float32)).reshape(-1, 2)
+            cv2.fillConvexPoly(mask, np.round(hull).astype(np.int32), 1)
+    return mask.astype(bool)
+
+
+def _ray_angles_deg(cam: Camera, pixels: np.ndarray) -> np.ndarray:
+    """Angle from the optical axis (degrees) of the true rays of pixels (N, 2)."""
+    rays = cam.unproject(np.asarray(pixels, float).reshape(-1, 2))
+    return np.degrees(np.arccos(np.clip(rays[:, 2], -1.0, 1.0)))
+
+
+def _lens_row(case: LensCase, target: str, method: str, **values: Any) -> dict[str, Any]:
+    row: dict[str, Any] = dict.fromkeys(LENS_COLUMNS, "")
+    row.update(lens=case.name, target=target, method=method, **values)
+    return row
+
+
+def _masked_errors(cam: Camera, K: np.ndarray, D: np.ndarray, model: str, mask: np.ndarray) -> dict[str, float]:
+    e = calibration_errors(cam, K, D, model, mask=mask)
+    return {k: e[k] for k in ("fx_err_pct", "fy_err_pct", "pp_err_px", "model_err_px")}
+
+
+def _ours(case: LensCase, cam: Camera, imgs: list[np.ndarray], target_name: str, distortion: str,
+          method: str) -> tuple[dict[str, Any], np.ndarray | None]:
+    """Our calibration of one grid session; the row and the observed field (None on failure)."""
+    target = resolve_target(target_name)
+    dets = [detect_target(im, target, name=f"v{k}") for k, im in enumerate(imgs)]
+    try:
+        res = calibrate(dets, target, CalibrationOptions(distortion=distortion))
+    except CalibrationError as e:
+        return _lens_row(case, target_name, method, views=f"0/{len(imgs)}", error=str(e)), None
+    mask = _hull_mask(res.edge_points, cam.width, cam.height)
+    angles = [float(_ray_angles_deg(cam, p).max()) for p in res.edge_points]
+    rejected = sorted({v.reason for v in res.views if not v.used and v.reason})
+    row = _lens_row(case, target_name, method, views=f"{res.n_used}/{len(imgs)}",
+                    **_masked_errors(cam, res.K, res.D, res.model, mask), rms=res.rms,
+                    max_ray_deg=max(angles), views_beyond_90=sum(a > 90 for a in angles),
+                    field_pct=100 * float(mask.mean()), note="; ".join(rejected))
+    return row, mask
+
+
+def _board_corners(img: np.ndarray, board_size: tuple[int, int], subpix: bool) -> np.ndarray | None:
+    """(N, 2) inner corners by ``cv2.findChessboardCornersSB`` (exhaustive, accuracy passes),
+    mirrored orders flipped to the sheet's handedness (the 180 degree ambiguity is a rigid motion
+    of the board, harmless for calibration); with ``subpix``, then refined by ``cv2.cornerSubPix``
+    with a window per corner fitted to its squares (detect/checkerboard.refine_corners: a fixed
+    window would swallow the small outer squares of a fisheye view)."""
+    import cv2
+
+    from ..detect.checkerboard import _right_handed, refine_corners
+
+    nx, ny = board_size
+    found, c = cv2.findChessboardCornersSB(
+        img, (nx, ny), flags=cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
+    if not found or c is None:
+        return None
+    grid = _right_handed(np.asarray(c, float).reshape(ny, nx, 2))
+    if subpix:
+        grid = refine_corners(img, grid)
+    return grid.reshape(-1, 2)
+
+
+MIN_VIEWS_OPENCV = 3
+
+
+def _cv_flag(name: str) -> int:
+    """An OpenCV calibration flag: ``cv2.fisheye.NAME`` up to 4.x, ``cv2.NAME`` in 5.0."""
+    import cv2
+
+    return int(getattr(cv2.fisheye, name, getattr(cv2, name)))
+
+
+def _opencv_fisheye(obj: np.ndarray, ips: list[np.ndarray], size: tuple[int, int]
+                    ) -> tuple[float, np.ndarray, np.ndarray, list[int], list[int]]:
+    """``cv2.fisheye.calibrate`` from an intrinsic guess (f = width / pi, i.e. 180 degrees across
+    the width; centred principal point), with CALIB_CHECK_COND: a view OpenCV names as
+    ill-conditioned is dropped and the calibration repeated. Returns rms, K, D, the indices (into
+    ``ips``) used and those dropped. OpenCV 5.0 wants the points as (1, N, 3) and (1, N, 2) arrays:
+    the (N, 1, 3) layout of the 4.x samples fails in arithm_op ("Sizes of input arguments do not
+    match")."""
+    import re
+
+    import cv2
+
+    w, h = size
+    flags = (_cv_flag("CALIB_USE_INTRINSIC_GUESS") | _cv_flag("CALIB_RECOMPUTE_EXTRINSIC")
+             | _cv_flag("CALIB_FIX_SKEW") | _cv_flag("CALIB_CHECK_COND"))
+    criteria = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 100, 1e-10)
+    keep = list(range(len(ips)))
+    dropped: list[int] = []
+    while len(keep) >= MIN_VIEWS_OPENCV:
+        K0 = np.array([[w / np.pi, 0.0, w / 2], [0.0, w / np.pi, h / 2], [0.0, 0.0, 1.0]])
+        try:
+            rms, K, D, _, _ = cv2.fisheye.calibrate(
+                [obj.reshape(1, -1, 3)] * len(keep), [ips[k].reshape(1, -1, 2) for k in keep], (w, h), K0,
+                np.zeros(4), flags=flags, criteria=criteria)
+            return float(rms), np.asarray(K), np.asarray(D).ravel()[:4], keep, dropped
+        except cv2.error as e:
+            m = re.search(r"input array (\d+)", str(e))
+            if m is None:
+                raise
+            dropped.append(keep.pop(int(m.group(1))))
+    raise cv2.error(f"fewer than {MIN_VIEWS_OPENCV} views left after CALIB_CHECK_COND dropped {len(dropped)}")
+
+
+def _opencv_rows(case: LensCase, cam: Camera, poses: list[Any], sensors: list[Any],
+                 our_field: np.ndarray | None) -> list[dict[str, Any]]:
+    """OpenCV on checkerboard_a4 rendered from the grid session's poses with the same camera
+    (views where the board is not wholly in the image skipped), corners by
+    findChessboardCornersSB with and without cornerSubPix, the lens's model in OpenCV."""
+    import cv2
+
+    board_t = resolve_target("checkerboard_a4")
+    board = board_t.checkerboards[0]
+    n = len(poses)
+    in_view = [k for k, p in enumerate(poses) if features_in_image(board_t, cam, p, margin=3.0)]
+    imgs = {k: render_view(board_t, cam, poses[k], sensors[k]).image for k in in_view}
+    obj2 = board.corner_points()
+    obj = np.c_[obj2, np.zeros(len(obj2))]
+    rows: list[dict[str, Any]] = []
+    fisheye = case.distortion == "equidistant"
+    for subpix in (False, True):
+        method = "OpenCV " + ("fisheye.calibrate" if fisheye else "calibrateCamera RATIONAL") + \
+            (", SB + cornerSubPix" if subpix else ", SB corners")
+        found = {}
+        for k in in_view:
+            c = _board_corners(imgs[k], board.inner_corners, subpix)
+            if c is not None:
+                found[k] = c
+        ks = sorted(found)
+        note = f"board wholly in view {len(in_view)}/{n}, found {len(ks)}"
+        if len(ks) < MIN_VIEWS_OPENCV:
+            rows.append(_lens_row(case, "checkerboard_a4", method, views=f"0/{n}", note=note,
+                                  error="board found in fewer than 3 views"))
+            continue
+        ips = [found[k] for k in ks]
+        try:
+            if fisheye:
+                rms, K, D, used, dropped = _opencv_fisheye(obj, ips, (cam.width, cam.height))
+                model = "equidistant"
+                if dropped:
+                    ang = [_true_ray_angle(cam, poses[ks[j]], obj) for j in dropped]
+                    note += (f", CALIB_CHECK_COND dropped {len(dropped)} (their corners reach "
+                             + ", ".join(f"{a:.0f}" for a in sorted(ang)) + " deg)")
+            else:
+                rms, K, D, _, _ = cv2.calibrateCamera(
+                    [obj.astype(np.float32)] * len(ks), [p.astype(np.float32) for p in ips],
+                    (cam.width, cam.height), None, None, flags=cv2.CALIB_RATIONAL_MODEL)
+                K, D, model = np.asarray(K), np.asarray(D).ravel()[:8], "rational_polynomial"
+                used = list(range(len(ks)))
+        except cv2.error as e:
+            rows.append(_lens_row(case, "checkerboard_a4", method, views=f"0/{n}", note=note,
+                                  error=str(e).strip().splitlines()[-1]))
+            continue
+        pts = [ips[j] for j in used]
+        mask = _hull_mask(pts, cam.width, cam.height)
+        angles = [_true_ray_angle(cam, poses[ks[j]], obj) for j in used]
+        row = _lens_row(case, "checkerboard_a4", method, views=f"{len(used)}/{n}",
+                        **_masked_errors(cam, K, D, model, mask), rms=float(rms), max_ray_deg=max(angles),
+                        views_beyond_90=sum(a > 90 for a in angles), field_pct=100 * float(mask.mean()), note=note)
+        if our_field is not None:
+            row["model_err_our_field_px"] = _masked_errors(cam, K, D, model, our_field)["model_err_px"]
+        rows.append(row)
+    return rows
+
+
+def _true_ray_angle(cam: Camera, pose: Any, obj: np.ndarray) -> float:
+    """Largest angle (degrees) from the optical axis of the target points ``obj`` (N, 3) at ``pose``."""
+    X = obj @ pose.R.T + pose.t
+    return float(np.degrees(np.max(np.arctan2(np.hypot(X[:, 0], X[:, 1]), X[:, 2]))))
+
+
+def lenses(out: Path, views: int, seed: int, cases: tuple[str, ...] = ("equidistant", "rational_polynomial")
+           ) -> list[dict[str, Any]]:
+    """Wide lenses (:func:`lens_cases`): the ring and disc grids calibrated with the matching model
+    beside OpenCV (fisheye.calibrate or calibrateCamera with the rational model) on checkerboard_a4
+    rendered from the same poses with the same camera; and plumb_bob asked of the fisheye, which
+    must refuse. Errors against truth; the model error over the observed field (the union of each
+    used view's convex hull of edge points or corners), for OpenCV also over our field."""
+    rows: list[dict[str, Any]] = []
+    for case in lens_cases(views, seed):
+        if case.distortion not in cases:
+            continue
+        ring = resolve_target("ring_grid_a4")
+        cam = case.spec.camera()
+        session = session_views(ring, case.spec)
+        poses = [p for _, p, _ in session]
+        sensors = [s for _, _, s in session]
+        sys.stderr.write(f"{case.name}: rendering {len(poses)} views of the ring and disc grids ...\n")
+        ring_imgs = [render_view(ring, cam, p, s).image for p, s in zip(poses, sensors, strict=True)]
+        disc = resolve_target("disc_grid_a4")
+        disc_imgs = [render_view(disc, cam, p, s).image for p, s in zip(poses, sensors, strict=True)]
+        ours = f"pascal-calib, {case.distortion}"
+        ring_row, field = _ours(case, cam, ring_imgs, "ring_grid_a4", case.distortion, ours)
+        disc_row, _ = _ours(case, cam, disc_imgs, "disc_grid_a4", case.distortion, ours)
+        rows += [ring_row, disc_row]
+        sys.stderr.write(f"{case.name}: OpenCV on checkerboard_a4 from the same poses ...\n")
+        rows += _opencv_rows(case, cam, poses, sensors, field)
+        if case.distortion == "equidistant":
+            bob, _ = _ours(case, cam, ring_imgs, "ring_grid_a4", "plumb_bob", "pascal-calib, plumb_bob (wrong model)")
+            rows.append(bob)
+    _write(rows, out, "lenses")
+    return rows
+
+
+def run_study(name: str, out: Path, views: int | None = None, seed: int = 1) -> None:
+    """Run a study; ``views`` None: 20 for ``lenses``, 15 for the others."""
     if name == "accuracy":
-        accuracy(out, views, seed)
+        accuracy(out, views or 15, seed)
     elif name == "edge-bias":
-        edge_bias(out, views, seed)
+        edge_bias(out, views or 15, seed)
     elif name == "grids":
-        grids(out, views, seed)
+        grids(out, views or 15, seed)
     elif name == "target-shape":
-        target_shape(out, views, seed)
+        target_shape(out, views or 15, seed)
+    elif name == "lenses":
+        lenses(out, views or 20, seed)
     else:
         raise ValueError(f"unknown study {name!r}")

@@ -1,6 +1,6 @@
 """Load the calibration node across processes: publish large frames at a fixed rate and record
-the node's processing rate, dropped frames and memory (``pascal-calib bench --node``,
-``tools/soak.py``)."""
+the node's processing rate, dropped frames and memory (``tools/bench_node.py`` for ``make bench``,
+``tools/soak.py``). Not part of the installed package: import it with tools/ on ``sys.path``."""
 
 from __future__ import annotations
 
@@ -12,10 +12,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from node_processes import NodeProcess, RosClient
 
-from ..sim.session import SessionSpec, render_session_views
-from ..targets import resolve_target
-from .processes import NodeProcess, RosClient
+from pascal_calib_ros.sim.session import SessionSpec, render_session_views
+from pascal_calib_ros.targets import resolve_target
 
 
 @dataclass

@@ -1,5 +1,7 @@
 """Start nodes as processes and talk to them from a private Context (there is no ``launch`` or
-``ros2`` CLI on PyPI). Used by the demo and the end-to-end tests."""
+``ros2`` CLI on PyPI). Used by the demo (tools/demo.py), the end-to-end tests (test/ros_harness.py)
+and the node load tests (tools/node_load.py). Not part of the installed package: import it with
+tools/ on ``sys.path`` (a script in tools/ has it already)."""
 
 from __future__ import annotations
 

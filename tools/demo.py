@@ -1,10 +1,12 @@
+#!/usr/bin/env python3
 """``make demo``: our own sample views through the real nodes.
 
 Renders a sample session of the ring target (12 good views and 3 that must be rejected: cut by
-the border, empty, defocused), starts ``replay_node`` and ``calibration_node`` as processes,
-follows ``~/status``, calls ``~/calibrate``, receives the latched ``~/camera_info`` in a separate
-subscriber, prints it and its error against the renderer's ground truth, and stops the nodes.
-Runs in a private network namespace when possible (``tools/in_netns``).
+the border, empty, defocused), starts ``replay_node`` (lock-step: every frame is examined) and
+``calibration_node`` as processes, follows ``~/status``, calls ``~/calibrate``, receives the
+latched ``~/camera_info`` in a separate subscriber, prints it and its error against the
+renderer's ground truth, and stops the nodes. Runs in a private network namespace when possible:
+``tools/in_netns .venv/bin/python tools/demo.py``.
 """
 
 from __future__ import annotations
@@ -18,30 +20,18 @@ from typing import Any
 
 import numpy as np
 
-from .geometry.camera import Camera, calibration_errors
-from .sim.session import SessionSpec, render_session
-from .targets import resolve_target
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from node_processes import NodeProcess, RosClient
+
+from pascal_calib_ros.sim.ground_truth import errors_against_truth
+from pascal_calib_ros.sim.session import SessionSpec, render_session
+from pascal_calib_ros.targets import resolve_target
 
 OUT = Path("demo_out")
 
 
-def errors_against_truth(truth: dict[str, Any], K: np.ndarray, D: np.ndarray) -> dict[str, float]:
-    """Errors of (K, D) against a rendered session's ground truth (session.json contents)."""
-    cam_t = Camera(np.array(truth["K"]), np.array(truth["D"]), truth["width"], truth["height"])
-    return calibration_errors(cam_t, K, D)
-
-
-def compare(truth_json: Path, calib_yaml: Path) -> dict[str, float]:
-    """Errors of a camera_calibration_parsers YAML against a rendered session's ground truth."""
-    from .io.camera_yaml import read_camera_yaml
-
-    info = read_camera_yaml(calib_yaml)
-    return errors_against_truth(json.loads(truth_json.read_text()), info.K, info.D)
-
-
 def main() -> int:
-    from .ros.processes import NodeProcess, RosClient
-
     session = OUT / "session"
     spec = SessionSpec(width=800, height=600, k1=-0.25, views=12, blur=1.0, gamma=2.2, noise=1.5, seed=3,
                        cut_views=1, empty_views=1, defocused_views=1)
@@ -54,7 +44,8 @@ def main() -> int:
     cal = NodeProcess("calibration_node",
                       {"min_views": 8, "camera_name": "demo_camera", "output_dir": str(OUT / "calibration")},
                       domain, OUT / "calibration_node.log")
-    rep = NodeProcess("replay_node", {"source": str(session), "rate": 5.0, "wait_for_subscribers": 1,
+    # lock-step (the default): each frame once the calibration node has examined the previous one
+    rep = NodeProcess("replay_node", {"source": str(session), "mode": "lockstep", "wait_for_subscribers": 1,
                                       "exit_when_done": True}, domain, OUT / "replay_node.log")
     client = RosClient(domain, "demo_client")
     code = 1

@@ -1,0 +1,50 @@
+"""Plain numbers about a calibration that the CLI, the node and the report share.
+
+- The observed field: the union over the used views of the convex hull of their feature points
+  (edge points, checkerboard corners); a lens model is only known there.
+- The distortion field: where the ideal model of the same lens family (same K, no coefficients:
+  the pinhole for plumb_bob and rational_polynomial, r = f theta for equidistant) would image each
+  ray, against where the calibrated model images it; computed only inside the observed field
+  (plus a margin), so a fold of the polynomial far outside it cannot set the scale.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from ..geometry.camera import Camera
+
+
+def observed_field_mask(points_per_view: list[np.ndarray], width: int, height: int, margin: float = 0.0
+                        ) -> np.ndarray:
+    """(height, width) bool: pixels inside the convex hull of some view's points, grown by
+    ``margin`` pixels."""
+    mask = np.zeros((height, width), np.uint8)
+    for p in points_per_view:
+        p = np.asarray(p, float).reshape(-1, 2)
+        p = p[np.all(np.isfinite(p), 1)]
+        if len(p) >= 3:
+            hull = cv2.convexHull(np.round(p).astype(np.int32))
+            cv2.fillConvexPoly(mask, hull, 1)
+    if margin > 0 and mask.any():
+        k = round(2 * margin + 1)
+        return np.asarray(cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))), bool)
+    return mask.astype(bool)
+
+
+def distortion_field(cam: Camera, step: int = 32, mask: np.ndarray | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Grid of pixels (N, 2) (inside ``mask`` if given) and the displacement (N, 2) from where the
+    ideal model of the lens family would image each pixel's ray to the pixel itself; rows whose
+    ray the model cannot invert are left out."""
+    us, vs = np.meshgrid(np.arange(step / 2, cam.width, step), np.arange(step / 2, cam.height, step))
+    uv = np.stack([us.ravel(), vs.ravel()], 1)
+    if mask is not None:
+        uv = uv[mask[uv[:, 1].astype(int), uv[:, 0].astype(int)]]
+    rays = cam.unproject(uv)
+    ok = np.all(np.isfinite(rays), 1)
+    if not cam.lens.wide:
+        ok &= rays[:, 2] > 1e-6
+    ideal = Camera(cam.K, np.zeros(cam.lens.n), cam.width, cam.height, cam.model).project(rays[ok])
+    return uv[ok], uv[ok] - ideal

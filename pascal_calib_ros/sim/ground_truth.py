@@ -1,0 +1,28 @@
+"""Accuracy of a calibration against a rendered session's ground truth (``session.json`` of
+``pascal-calib render``), for the demo (``tools/demo.py``) and the tests."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..geometry.camera import Camera, calibration_errors
+
+
+def errors_against_truth(truth: dict[str, Any], K: np.ndarray, D: np.ndarray, model: str = "") -> dict[str, float]:
+    """Errors of (K, D) of lens ``model`` (default: inferred from len(D)) against a rendered
+    session's ground truth (session.json contents)."""
+    cam_t = Camera(np.array(truth["K"]), np.array(truth["D"]), truth["width"], truth["height"],
+                   truth.get("distortion_model", "plumb_bob"))
+    return calibration_errors(cam_t, K, D, model)
+
+
+def compare(truth_json: Path, calib_yaml: Path) -> dict[str, float]:
+    """Errors of a camera_calibration_parsers YAML against a rendered session's ground truth."""
+    from ..io.camera_yaml import read_camera_yaml
+
+    info = read_camera_yaml(calib_yaml)
+    return errors_against_truth(json.loads(truth_json.read_text()), info.K, info.D, info.distortion_model)
