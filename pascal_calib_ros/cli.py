@@ -17,7 +17,8 @@ import numpy as np
 
 from .calibrate.pipeline import METHODS, CalibrationError, CalibrationOptions, CalibrationResult, calibrate
 from .calibrate.refine import DISTORTION_MODELS, SHAPE_CHOICES
-from .detect.rings import Detection, DetectionParams, detect_target
+from .detect.detection import Detection, DetectionParams
+from .detect.target_detector import detect_target
 from .geometry.camera import rectified_projection
 from .geometry.lens import lens_model
 from .io.camera_yaml import CameraInfoData, write_camera_yaml

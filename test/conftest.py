@@ -7,7 +7,8 @@ import os
 import numpy as np
 import pytest
 
-from pascal_calib_ros.detect.rings import Detection, detect_target
+from pascal_calib_ros.detect.detection import Detection
+from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.geometry.camera import Camera, rodrigues
 from pascal_calib_ros.sim.session import SessionSpec, render_session_views
 from pascal_calib_ros.targets import Target, resolve_target

@@ -21,7 +21,8 @@ from pascal_calib_ros.calibrate.arm_session import (
     view_placement,
 )
 from pascal_calib_ros.calibrate.collector import ViewCollector
-from pascal_calib_ros.detect.rings import Detection, detect_target
+from pascal_calib_ros.detect.detection import Detection
+from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.geometry.transform import Transform
 from pascal_calib_ros.sim.render import Pose, SensorModel, render_view
 from pascal_calib_ros.sim.session import SessionSpec

@@ -17,7 +17,7 @@ from pascal_calib_ros.detect.checkerboard import (
     find_checkerboard,
     refine_corners,
 )
-from pascal_calib_ros.detect.rings import detect_target
+from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.sim.bench import pinhole_frame
 from pascal_calib_ros.sim.render import RenderedView
 from pascal_calib_ros.sim.session import SessionSpec, render_session_views, session_views

@@ -1,6 +1,7 @@
 import numpy as np
 
-from pascal_calib_ros.detect.rings import DetectionParams, detect_target
+from pascal_calib_ros.detect.detection import DetectionParams
+from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.geometry.camera import Camera
 from pascal_calib_ros.geometry.conic import conic_image_of_circle, sampson_distance
 from pascal_calib_ros.sim.render import Pose, SensorModel, look_at_pose, render_view

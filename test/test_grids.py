@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from pascal_calib_ros.calibrate.pipeline import calibrate
-from pascal_calib_ros.detect.rings import Detection, detect_target
+from pascal_calib_ros.detect.detection import Detection
+from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.geometry.camera import Camera, model_error
 from pascal_calib_ros.geometry.circular import vanishing_line_huang
 from pascal_calib_ros.geometry.conic import Ellipse

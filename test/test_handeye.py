@@ -22,7 +22,8 @@ from pascal_calib_ros.calibrate.handeye import (
     ring_closed_form,
 )
 from pascal_calib_ros.calibrate.pipeline import CalibrationError
-from pascal_calib_ros.detect.rings import Detection, detect_target
+from pascal_calib_ros.detect.detection import Detection
+from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.geometry.transform import Transform
 from pascal_calib_ros.io.hand_eye_yaml import PosesYamlError, read_poses_yaml, write_poses_yaml
 from pascal_calib_ros.sim.arm import ArmSession, ArmSpec, hand_eye_errors, simulate_arm_session

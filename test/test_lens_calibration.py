@@ -74,7 +74,8 @@ def test_cli_fisheye_session_writes_an_equidistant_yaml(tmp_path) -> None:
 def test_single_ring_through_a_fisheye() -> None:
     """A large ring is no conic under a fisheye: detection for a wide lens tolerates that, the
     start draws the edges in a virtual pinhole camera, the refinement uses the model itself."""
-    from pascal_calib_ros.detect.rings import DetectionParams, detect_target
+    from pascal_calib_ros.detect.detection import DetectionParams
+    from pascal_calib_ros.detect.target_detector import detect_target
     from pascal_calib_ros.sim.session import render_session_views
 
     target = resolve_target("ring_a4")

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from pascal_calib_ros.calibrate.pipeline import CalibrationError, CalibrationOptions, calibrate
-from pascal_calib_ros.detect.rings import Detection, detect_target
+from pascal_calib_ros.detect.detection import Detection
+from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.geometry.camera import Camera, model_error
 from pascal_calib_ros.sim.render import SensorModel, look_at_pose, render_view
 from pascal_calib_ros.targets import Target

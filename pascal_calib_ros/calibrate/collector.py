@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from ..detect.rings import Detection
+from ..detect.detection import Detection
 from ..geometry.conic import ellipses_from_conics
 from ..geometry.transform import Transform
 

@@ -50,7 +50,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from ..detect.rings import Detection
+from ..detect.detection import Detection
 from ..geometry.camera import Camera
 from ..geometry.circular import CircularPointError
 from ..geometry.lens import DISTORTION_CHOICES
@@ -78,6 +78,7 @@ class HandEyeOptions:
     estimate_robot_noise: bool = True  # estimate the arm's accuracy from the data (variance components)
     outlier_mm: float = 10.0  # a view whose chain disagrees by more than max(this, 8 x median) is dropped
     outlier_deg: float = 1.0
+    jackknife_groups: int = 5  # the sigmas of X and Y also from a delete-a-group jackknife over the views (0: off)
 
 
 @dataclass
@@ -579,6 +580,11 @@ def calibrate_hand_eye(dets: list[Detection], robot_poses: Sequence[Transform | 
 
     X, Y, Cf, sol_info = _refine_chain(views, M, X0, Y0, C0, cal, options, he, target, origin)
     (K, D, std, rms, offsets, view_rms, edge_res, sig_t, sig_r, sx_t, sx_r, sy_t, sy_r, success) = sol_info
+    if he.jackknife_groups >= 2 and len(views) >= 2 * he.jackknife_groups:
+        jx_t, jx_r, jy_t, jy_r = _jackknife(views, M, X, Y, Cf, replace(cal, K=K, D=D), options, he, target,
+                                            origin, sig_t, sig_r)
+        sx_t, sx_r = np.maximum(sx_t, jx_t), np.maximum(sx_r, jx_r)
+        sy_t, sy_r = np.maximum(sy_t, jy_t), np.maximum(sy_r, jy_r)
     mm, deg = chain_disagreement(M, X, Y, Cf, mode)
     for j, k in enumerate(kept):
         reports[k].used, reports[k].reason = True, ""
@@ -623,9 +629,116 @@ def _complete_ring_poses(M: list[Transform], X: Transform, Y: Transform, C: list
     return out
 
 
+def _lag_factor(chunks: list[np.ndarray], circular: bool, max_lag: int = 40) -> float:
+    """1 + 2 sum_k rho_k of residual sequences (pooled lag-k autocorrelations, summed while positive:
+    Geyer's initial positive sequence): the factor by which correlated neighbours reduce the
+    effective number of independent residuals."""
+    chunks = [c for c in chunks if len(c) >= 4]
+    if not chunks:
+        return 1.0
+    r0 = sum(float(c @ c) for c in chunks)
+    n0 = sum(len(c) for c in chunks)
+    if r0 <= 0:
+        return 1.0
+    var = r0 / n0
+    kappa = 1.0
+    for k in range(1, max_lag + 1):
+        num, cnt = 0.0, 0
+        for c in chunks:
+            if len(c) < 2 * k + 2:
+                continue
+            if circular:
+                num += float(c @ np.roll(c, -k))
+                cnt += len(c)
+            else:
+                num += float(c[:-k] @ c[k:])
+                cnt += len(c) - k
+        if cnt == 0:
+            break
+        rho = num / cnt / var
+        if rho <= 0.02:
+            break
+        kappa += 2 * rho
+    return kappa
+
+
+def correlation_factor(prob: Problem, views: list[ViewData], f: np.ndarray) -> float:
+    """How many times fewer independent observations the edges (or corners) hold than points:
+    neighbouring edge points (one contour of a circle, closed) and neighbouring checkerboard
+    corners (along the rows and the columns of the grid) err together (blur, sampling, the
+    sub-pixel locator). From the residuals' autocorrelation; 1 for independent residuals.
+    Weighting the edges by 1 / kappa against the chain and inflating their covariance by kappa
+    makes the reported sigmas honest."""
+    kap_e = kap_c = 1.0
+    n_e, n_c = prob.n_edge, prob.n_corner
+    if n_e:
+        er = f[:n_e]
+        chunks = []
+        for v, sl in enumerate(prob.edge_slices):
+            r, ids = er[sl], views[v].circle_ids
+            if len(r) != len(ids):
+                continue
+            cut = np.flatnonzero(np.diff(ids)) + 1
+            chunks += [c for c in np.split(r, cut)]
+        kap_e = _lag_factor(chunks, circular=True)
+    if n_c:
+        cr = f[n_e:n_e + 2 * n_c].reshape(-1, 2)
+        rows_, cols_ = [], []
+        for v in range(prob.nv):
+            sel = np.flatnonzero(prob.view_of_corner == v)
+            obj = views[v].corner_obj
+            if len(sel) < 9 or len(obj) != len(sel):
+                continue
+            xs, ys = np.unique(np.round(obj[:, 0], 6)), np.unique(np.round(obj[:, 1], 6))
+            if len(xs) * len(ys) != len(sel):
+                continue
+            ix = np.searchsorted(xs, np.round(obj[:, 0], 6))
+            iy = np.searchsorted(ys, np.round(obj[:, 1], 6))
+            grid = np.zeros((len(ys), len(xs), 2))
+            grid[iy, ix] = cr[sel]
+            for a in range(2):
+                rows_ += list(grid[:, :, a])
+                cols_ += list(grid[:, :, a].T)
+        if rows_:
+            kap_c = _lag_factor(rows_, circular=False, max_lag=6) * _lag_factor(cols_, circular=False, max_lag=6)
+    if n_e and n_c:
+        return float((n_e * kap_e + 2 * n_c * kap_c) / (n_e + 2 * n_c))
+    return float(kap_e if n_e else kap_c)
+
+
+def _jackknife(views: list[ViewData], M: list[Transform], X: Transform, Y: Transform, C: list[Transform],
+               cal: CalibrationResult, opt: CalibrationOptions, he: HandEyeOptions, target: Target,
+               origin: tuple[float, float], sig_mm: float, sig_deg: float
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per-axis sigmas of X and Y (mm, deg) from a delete-a-group jackknife: the views in
+    ``he.jackknife_groups`` interleaved groups, the joint estimate without each group (from the full
+    solution, the arm's sigmas held), var = (g - 1) / g sum (theta_-k - mean)^2. It sees what
+    the residuals' covariance does not: detection biases that differ from view to view, the
+    arm's systematic errors."""
+    g = he.jackknife_groups
+    he_k = replace(he, robot_sigma_mm=sig_mm, robot_sigma_deg=sig_deg, estimate_robot_noise=False,
+                   jackknife_groups=0)
+    xs, ys = [], []
+    for k in range(g):
+        keep = [i for i in range(len(views)) if i % g != k]
+        Xk, Yk, _, _ = _refine_chain([views[i] for i in keep], [M[i] for i in keep], X, Y, [C[i] for i in keep],
+                                     cal, opt, he_k, target, origin, covariance=False)
+        xs.append(Xk)
+        ys.append(Yk)
+
+    def spread(ts: list[Transform], ref: Transform) -> tuple[np.ndarray, np.ndarray]:
+        dt = np.array([1000 * (t.translation - ref.translation) for t in ts])
+        dr = np.array([np.degrees((t.rotation * ref.rotation.inv()).as_rotvec()) for t in ts])
+        f = (g - 1) / g
+        return np.sqrt(f * np.sum((dt - dt.mean(0)) ** 2, 0)), np.sqrt(f * np.sum((dr - dr.mean(0)) ** 2, 0))
+
+    return (*spread(xs, X), *spread(ys, Y))
+
+
 def _refine_chain(views: list[ViewData], M: list[Transform], X0: Transform, Y0: Transform, C0: list[Transform],
                   cal: CalibrationResult, opt: CalibrationOptions, he: HandEyeOptions, target: Target,
-                  origin: tuple[float, float]) -> tuple[Transform, Transform, list[Transform], tuple]:
+                  origin: tuple[float, float], covariance: bool = True
+                  ) -> tuple[Transform, Transform, list[Transform], tuple]:
     """The joint refinement with the robot chain as a measurement; the arm's sigmas by variance
     components (iterated) when asked for. Returns X, Y, the camera poses and the figures."""
     lens, free_d = DISTORTION_CHOICES[opt.distortion]
@@ -647,19 +760,21 @@ def _refine_chain(views: list[ViewData], M: list[Transform], X0: Transform, Y0: 
     xy = np.r_[X0.rotvec, X0.translation, Y0.rotvec, Y0.translation]
     x = prob.pack_chain(intr0, [np.r_[c.rotvec, c.translation] for c in C0], np.zeros(len(views)), xy)
     rows_r, rows_t = prob.chain_rows()
-    for _ in range(8 if he.estimate_robot_noise else 1):
+    kappa = 1.0
+    for it in range(8 if he.estimate_robot_noise else 2):
         chain.sigma_rot, chain.sigma_trans = sig_r, sig_t
         sol = levenberg_marquardt(prob, x, intr0, 0.3, max_iter=100)
         x = sol.x
-        # the edge scale (px): what a chain residual of one sigma weighs
+        # the edge scale (px) and the edges' correlation: what a chain residual of one sigma weighs
         n_rob = prob.n_robust
         s_edge = float(np.sqrt(np.sum(sol.weights[:n_rob] * sol.fun[:n_rob] ** 2) / max(n_rob - len(x), 1)))
+        kappa_new = correlation_factor(prob, views, sol.fun)
         if not he.estimate_robot_noise:
+            if it == 0:
+                kappa, chain.scale = kappa_new, max(s_edge * np.sqrt(kappa_new), 1e-3)
+                continue
             break
-        try:
-            Ainv = np.linalg.inv(sol.normal_matrix)
-        except np.linalg.LinAlgError:
-            break
+        Ainv = np.linalg.pinv(sol.normal_matrix)
         new = []
         for rows, sig in ((rows_r, sig_r), (rows_t, sig_t)):
             w = np.zeros(len(sol.fun))
@@ -670,18 +785,30 @@ def _refine_chain(views: list[ViewData], M: list[Transform], X0: Transform, Y0: 
             new.append(sig * np.sqrt(chi2 / red))
         new_r = max(new[0], np.radians(1e-4))
         new_t = max(new[1], 1e-6)
-        done = abs(new_r / sig_r - 1) < 0.05 and abs(new_t / sig_t - 1) < 0.05 and abs(s_edge / chain.scale - 1) < 0.05
+        new_scale = max(s_edge * np.sqrt(kappa_new), 1e-3)
+        done = (abs(new_r / sig_r - 1) < 0.05 and abs(new_t / sig_t - 1) < 0.05
+                and abs(new_scale / chain.scale - 1) < 0.05)
+        import os
+        if os.environ.get("HE_DEBUG"):
+            print("VC", np.degrees(sig_r), sig_t * 1e3, "->", np.degrees(new_r), new_t * 1e3, "s_edge", s_edge,
+                  "kappa", kappa_new, sol.iterations, sol.message)
         sig_r, sig_t = new_r, new_t
-        chain.scale = max(s_edge, 1e-3)
+        chain.scale, kappa = new_scale, kappa_new
         if done:
             break
     chain.sigma_rot, chain.sigma_trans = sig_r, sig_t
     intr, _, poses, offsets = prob.unpack(x, intr0)
     xy = prob.chain_params(x)
+    if not covariance:
+        return Transform.from_rotvec(xy[0:3], xy[3:6]), Transform.from_rotvec(xy[6:9], xy[9:12]), [], ()
     f = sol.fun
     w = sol.weights
-    s2 = float(np.sum(w * f**2) / max(len(f) - len(x), 1))
-    cov = np.linalg.pinv(sol.normal_matrix) * s2
+    # the normal matrix weighs the edges as independent points of variance s_edge^2 and the chain in units of
+    # chain.scale = s_edge sqrt(kappa): the covariance is its inverse times kappa s_edge^2 (edges of variance
+    # kappa s_edge^2, the chain of its sigmas)
+    n_rob = prob.n_robust
+    s2 = float(np.sum(w[:n_rob] * f[:n_rob] ** 2) / max(n_rob - len(x), 1)) if n_rob else 1.0
+    cov = np.linalg.pinv(sol.normal_matrix) * s2 * kappa
     names = prob.names
     std = {names[i]: float(np.sqrt(max(cov[k, k], 0.0))) for k, i in enumerate(prob.free)}
     b = prob.n_base

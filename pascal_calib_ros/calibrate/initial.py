@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..detect.rings import Detection
+from ..detect.detection import Detection
 from ..geometry.camera import Camera, rodrigues, rotation_to_rvec
 from ..geometry.circular import (
     PT1_STARTS,

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ..detect.rings import Detection
+from ..detect.detection import Detection
 from ..errors import PascalCalibError
 from ..geometry.camera import Camera
 from ..geometry.circular import CircularPointError
@@ -193,10 +193,10 @@ def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions
         reports[k].edge_offset = float(res.offsets[j])
     _check_result(res, w, h, warnings)
     folded = _check_model_fits(res, views, lens, w, h)
-    if not lens.wide and (res.rms > MISFIT_RMS or folded > 0):
+    if not lens.wide and res.rms > MISFIT_RMS:
         _refuse_if_fisheye_fits(dets, target, opt, res.rms)
     if folded > 0:
-        warnings.append(f"{100 * folded:.2f} % of the edge points lie where the fitted {lens.name} model folds over "
+        warnings.append(f"{100 * folded:.3f} % of the edge points lie where the fitted {lens.name} model folds over "
                         "(the image's rim): the model does not hold there; a richer model may")
     return CalibrationResult(res.K, res.D, w, h, opt.method, res.rms, res.std, start.sol.degeneracy_ratio, reports,
                              warnings, start.sol.K, True, opt.distortion, res.poses, [v.points for v in views],
@@ -364,9 +364,10 @@ def _add_views_without_start(res: RefineResult, views: list[ViewData], idx: list
                              origin: tuple[float, float], dof: int
                              ) -> tuple[RefineResult, list[ViewData], list[int]]:
     """Views the closed form could not use (a fisheye's rim, a view whose conics the start could
-    not solve) are posed with the refined camera (:func:`pose_with_camera`) and the refinement is
-    repeated with them; a view that still fits badly is dropped as an outlier again."""
-    missing = [k for k in usable if k not in idx and not reports[k].reason.startswith("outlier")]
+    not solve) or that were dropped as outliers (possibly a bad start) are posed with the refined
+    camera (:func:`pose_with_camera`) and the refinement is repeated with them; a view that still
+    fits badly is dropped as an outlier again."""
+    missing = [k for k in usable if k not in idx]  # an outlier may only have had a bad start: one more try
     if not missing:
         return res, views, idx
     cam = Camera(res.K, res.D, dets[0].width, dets[0].height, res.model)
@@ -451,8 +452,10 @@ def _refuse_if_fisheye_fits(dets: list[Detection], target: Target, opt: Calibrat
                                "--distortion equidistant (node: distortion_model equidistant)")
 
 
-FOLD_REFUSE_FRACTION = 0.01  # a fitted model folding over under this share of the edge points is refused
-FOLD_WARN_FRACTION = 0.0005
+# a fitted model that folds over under more than this share of the observed edge points is refused
+# (a fit whose optimum lies in a flat valley, as a rational model on a fisheye, may fold more or less
+# depending on the last bits: any such fold is a model that does not describe the lens)
+FOLD_REFUSE_FRACTION = 0.0005
 
 
 def _check_model_fits(res: RefineResult, views: list[ViewData], lens: LensModel, w: int, h: int) -> float:
@@ -476,7 +479,7 @@ def _check_model_fits(res: RefineResult, views: list[ViewData], lens: LensModel,
         raise CalibrationError(f"the fitted {lens.name} model folds over inside the observed field ({100 * bad:.1f} % "
                                f"of the edge points have no consistent ray; the model is monotonic only up to "
                                f"{field:.0f} degrees): this lens is wider than {lens.name} can describe; {advice}")
-    return bad if bad > FOLD_WARN_FRACTION else 0.0
+    return bad
 
 
 def _check_result(res: RefineResult, w: int, h: int, warnings: list[str]) -> None:

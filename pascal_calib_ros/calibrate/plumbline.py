@@ -16,7 +16,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..detect.rings import Detection
+from ..detect.detection import Detection
 from ..geometry.conic import ellipses_from_conics, fit_conics_algebraic, sampson_distances
 from ..targets import Target
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from ..detect.rings import Detection
+from ..detect.detection import Detection
 from ..geometry.iac import DegenerateViewsError
 from ..targets import Target
 

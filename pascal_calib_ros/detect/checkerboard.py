@@ -27,16 +27,12 @@ resolution.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import cv2
 import numpy as np
 
 from ..geometry.circular import CircularPointError, centre_image_from_ring
 from ..targets import Checkerboard, Target
-
-if TYPE_CHECKING:
-    from .rings import Detection
+from .detection import Detection
 
 COARSE_PIXELS = 600_000  # the board is searched on a copy halved until it has at most this many pixels
 FINE_PIXELS = 1_400_000  # ... failing that, on the next finer copy if it has at most this many

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..calibrate.diagnostics import distortion_field, observed_field_mask
 from ..calibrate.pipeline import CalibrationResult
-from ..detect.rings import Detection
+from ..detect.detection import Detection
 
 FIELD_MARGIN = 30.0  # px around the observed field where the distortion field is still drawn
 

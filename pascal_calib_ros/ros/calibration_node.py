@@ -55,7 +55,8 @@ from ..calibrate.arm_session import (
 from ..calibrate.collector import ViewCollector
 from ..calibrate.pipeline import METHODS, CalibrationError, CalibrationOptions, CalibrationResult, calibrate
 from ..calibrate.refine import DISTORTION_MODELS, SHAPE_CHOICES
-from ..detect.rings import Detection, DetectionParams, detect_target
+from ..detect.detection import Detection, DetectionParams
+from ..detect.target_detector import detect_target
 from ..geometry.camera import rectified_projection
 from ..geometry.lens import lens_model
 from ..geometry.transform import Transform, TransformError

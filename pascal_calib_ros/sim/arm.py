@@ -6,9 +6,17 @@ the tool carries the target past it (Y = T_tool_target). The camera poses are dr
 calibration session (:func:`~.render.random_poses`: the whole target in view, tilted 15-45 degrees
 about varied axes, rolled); the tool poses follow from the loop, G_i = Y C_i^-1 X^-1 (eye in hand)
 or X C_i Y^-1 (eye to hand), and are then spoiled like a real arm's reading: a systematic error
-(the arm's translations scaled by 1 + ``scale_error`` about the base origin: 5e-4 is 0.3 mm at
-0.6 m reach) and independent noise per pose and axis (``noise_mm``, ``noise_deg``; about the
-tool's own axes).
+and independent noise per pose and axis (``noise_mm``, ``noise_deg``; about the tool's own axes).
+
+The systematic error is what a real arm's kinematic errors (link lengths, joint offsets) do: a
+smooth error of the reported tool position that depends on where the tool is. It is modelled as
+a field over the workspace, per base axis j: ``systematic_mm * sin(k_j . p + phi_j)`` (p the true
+tool position; k_j of length 2 pi / ``systematic_wavelength``, random directions, phi_j random,
+all drawn from the seed), so a few tenths of a millimetre that vary over the poses: part of it is
+a constant offset (absorbed by the target's pose), part a gradient (a scale or shear of the arm's
+motions that hand-eye cannot separate from X). Optionally also a scale error of the arm's
+translations about the base origin (``scale_error``; off by default: 5e-4 is 0.6 mm at 1.2 m, more
+than a few tenths, and not observable at all in eye to hand).
 """
 
 from __future__ import annotations
@@ -50,7 +58,9 @@ class ArmSpec:
     seed: int = 0
     noise_mm: float = 0.1  # per axis and pose
     noise_deg: float = 0.01
-    scale_error: float = 5e-4  # the arm's translations scaled by 1 + this (systematic)
+    systematic_mm: float = 0.25  # amplitude per base axis of the smooth position error field (systematic)
+    systematic_wavelength: float = 1.0  # m, of the error field
+    scale_error: float = 0.0  # the arm's translations scaled by 1 + this (systematic)
     blur: float = 1.0
     gamma: float = 2.2
     sensor_noise: float = 1.5
@@ -86,12 +96,17 @@ def arm_poses(spec: ArmSpec, pose_target: Target, hand_eye: Transform | None = N
     cam = spec.camera()
     rng = np.random.default_rng(spec.seed)
     poses = random_poses(pose_target, cam, spec.views, rng, spec.tilt_range, spec.size_range)
+    field_rng = np.random.default_rng([spec.seed, 12])  # a stream of its own: the poses do not depend on it
+    kdir = field_rng.normal(size=(3, 3))
+    kvec = 2 * np.pi / spec.systematic_wavelength * kdir / np.linalg.norm(kdir, axis=1, keepdims=True)
+    phase = field_rng.uniform(0, 2 * np.pi, 3)
     true, meas = [], []
     for p in poses:
         C = Transform.from_rt(p.R, p.t)
         G = Y @ C.inverse() @ X.inverse() if spec.mode == "eye_in_hand" else X @ C @ Y.inverse()
         true.append(G)
-        g = Transform(G.rotation, G.translation * (1 + spec.scale_error))
+        field_err = spec.systematic_mm / 1000 * np.sin(kvec @ G.translation + phase)
+        g = Transform(G.rotation, G.translation * (1 + spec.scale_error) + field_err)
         noise = Transform.from_rotvec(rng.normal(0, np.radians(spec.noise_deg), 3),
                                       rng.normal(0, spec.noise_mm / 1000, 3))
         meas.append(g @ noise)

@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 
 from ..calibrate.pipeline import CalibrationOptions, calibrate
-from ..detect.rings import detect_target
+from ..detect.target_detector import detect_target
 from ..geometry.camera import Camera
 from ..targets import Target, packaged_targets_dir, resolve_target
 from .render import BACKGROUND, Pose, SensorModel, apply_sensor, reflectance, render_view

@@ -27,7 +27,8 @@ import numpy as np
 
 from ..calibrate.pipeline import CalibrationError, CalibrationOptions, calibrate
 from ..calibrate.refine import ViewData, refine
-from ..detect.rings import Detection, detect_target
+from ..detect.detection import Detection
+from ..detect.target_detector import detect_target
 from ..geometry.camera import rodrigues
 from ..geometry.circular import (
     PT1_STARTS,
@@ -206,7 +207,7 @@ def _k_ring_refined(views: list[SimView]) -> np.ndarray:
                              np.r_[np.ones(n1), -np.ones(n2)], np.r_[np.zeros(n1), np.ones(n2)].astype(int)))
         # pose from the closed-form K: normal from the vanishing line, centre from the pencil
         from ..calibrate.initial import pose_from_view
-        from ..detect.rings import CircleEdge
+        from ..detect.detection import CircleEdge
 
         det = Detection(W, H, [CircleEdge(0, v.pts["outer"], v.conics["outer"], 1.0, 0.0),
                                CircleEdge(1, v.pts["inner"], v.conics["inner"], 1.0, 0.0)])

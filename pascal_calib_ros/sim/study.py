@@ -24,7 +24,8 @@ from typing import Any
 import numpy as np
 
 from ..calibrate.pipeline import CalibrationError, CalibrationOptions, calibrate
-from ..detect.rings import DetectionParams, detect_target
+from ..detect.detection import DetectionParams
+from ..detect.target_detector import detect_target
 from ..geometry.camera import Camera, calibration_errors
 from ..targets import resolve_target
 from .render import features_in_image, render_view

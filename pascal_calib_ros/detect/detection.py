@@ -1,0 +1,68 @@
+"""What detection gives: per view, the subpixel edges of the target's circles, checkerboard
+corners, or a rejection with its reason; and the parameters of detection. Plain data shared by
+the detector (:mod:`.target_detector`), the checkerboard finder and everything downstream."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class DetectionParams:
+    max_blur: float = 4.0  # px; wider edges reject the view as too blurred
+    min_radius: float = 8.0  # px, smallest accepted semi-minor axis of an outer edge
+    border_margin: float = 3.0  # px between any feature and the image border
+    working_pixels: int = 1_000_000  # contour search on a copy downscaled to about this size
+    edge_spacing: float = 1.5  # px of arc per edge profile
+    curvature_correction: bool = True
+    gamma: float = 1.0  # linearise intensities with this display gamma before locating edges
+    min_edge_strength: float = 4.0  # grey levels per px along a blob outline (print vs shading)
+    # how far (relative to its size) a blob outline may depart from an ellipse; a fisheye bends
+    # large circles away from conics: the calibration raises it for wide lens models
+    ellipse_tolerance: float = 0.03
+
+    @staticmethod
+    def for_lens(wide: bool, **kwargs: Any) -> DetectionParams:
+        """The parameters for a lens model: a fisheye (``wide``) bends a large circle up to ~10 %
+        of its size away from the best ellipse (measured on equidistant renders of ring_a4)."""
+        return DetectionParams(ellipse_tolerance=0.12 if wide else 0.03, **kwargs)
+
+
+@dataclass
+class CircleEdge:
+    """Subpixel observation of one target circle (index into ``Target.circles``)."""
+
+    circle: int
+    points: np.ndarray
+    conic: np.ndarray
+    width: float  # median blur sigma, px
+    rms: float
+
+
+@dataclass
+class Detection:
+    """What one view gave: edges of circles, checkerboard corners, or a rejection reason."""
+
+    width: int
+    height: int
+    edges: list[CircleEdge] = field(default_factory=list)
+    corners: np.ndarray | None = None  # (N, 2) checkerboard inner corners, target order
+    reason: str = ""  # empty when usable
+    name: str = ""
+    note: str = ""  # what was left out of a usable view
+
+    @property
+    def ok(self) -> bool:
+        return not self.reason
+
+    def edge(self, circle: int) -> CircleEdge | None:
+        for e in self.edges:
+            if e.circle == circle:
+                return e
+        return None
+
+
+DEFAULT_PARAMS = DetectionParams()
