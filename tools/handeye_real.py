@@ -33,10 +33,10 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from pascal_calib_ros.detect.target_detector import detect_target
 
 from pascal_calib_ros.calibrate.handeye import calibrate_hand_eye
 from pascal_calib_ros.calibrate.pipeline import CalibrationError
+from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.geometry.transform import Transform
 from pascal_calib_ros.targets import load_target
 
@@ -68,7 +68,7 @@ def opencv_half(corners: list[np.ndarray], obj: np.ndarray, size: tuple[int, int
                 out: Path, tag: str, py: str) -> dict[str, Transform]:
     objs = [np.c_[obj, np.zeros(len(obj))].astype(np.float32)] * len(corners)
     pts = [c.reshape(-1, 1, 2).astype(np.float32) for c in corners]
-    _, K, _D, rvecs, tvecs = cv2.calibrateCamera(objs, pts, size, None, None)
+    _, _K, _D, rvecs, tvecs = cv2.calibrateCamera(objs, pts, size, None, None)
     views = [{"R_base_tool": G.R.tolist(), "t_base_tool": G.translation.tolist(),
               "R_cam_target": cv2.Rodrigues(rv)[0].tolist(), "t_cam_target": np.ravel(tv).tolist()}
              for G, rv, tv in zip(poses, rvecs, tvecs, strict=True)]

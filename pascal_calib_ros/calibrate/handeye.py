@@ -36,7 +36,13 @@ Steps:
    with the arm's accuracy as its standard deviation (not a constraint: real arms are off by
    tenths of a millimetre, and deriving every camera pose from the robot pose makes the estimate
    follow the arm's errors). The arm's accuracy is estimated from the data (variance components:
-   sigma^2 <- sum r^2 / redundancy of the chain rows, iterated) unless told otherwise.
+   sigma^2 <- sum r^2 / redundancy of the chain rows, iterated) unless told otherwise. Neighbouring
+   edge points (and checkerboard corners) err together: the edges weigh 1 / kappa against the
+   chain, kappa from the residuals' autocorrelation (:func:`correlation_factor`), and their
+   covariance is inflated by kappa;
+6. the sigmas of X and Y: the larger per axis of the covariance of step 5 and a delete-a-group
+   jackknife over the views (:func:`_jackknife`; it sees view-to-view detection biases and the
+   arm's systematic errors that the residuals' covariance does not).
 """
 
 from __future__ import annotations
@@ -788,10 +794,6 @@ def _refine_chain(views: list[ViewData], M: list[Transform], X0: Transform, Y0: 
         new_scale = max(s_edge * np.sqrt(kappa_new), 1e-3)
         done = (abs(new_r / sig_r - 1) < 0.05 and abs(new_t / sig_t - 1) < 0.05
                 and abs(new_scale / chain.scale - 1) < 0.05)
-        import os
-        if os.environ.get("HE_DEBUG"):
-            print("VC", np.degrees(sig_r), sig_t * 1e3, "->", np.degrees(new_r), new_t * 1e3, "s_edge", s_edge,
-                  "kappa", kappa_new, sol.iterations, sol.message)
         sig_r, sig_t = new_r, new_t
         chain.scale, kappa = new_scale, kappa_new
         if done:
