@@ -57,6 +57,7 @@ from ..calibrate.pipeline import METHODS, CalibrationError, CalibrationOptions, 
 from ..calibrate.refine import DISTORTION_MODELS, SHAPE_CHOICES
 from ..detect.detection import Detection, DetectionParams
 from ..detect.target_detector import detect_target
+from ..errors import PascalCalibError
 from ..geometry.camera import rectified_projection
 from ..geometry.lens import lens_model
 from ..geometry.transform import Transform, TransformError
@@ -65,6 +66,9 @@ from ..io.image_msgs import ImageConversionError, compressed_to_grey, grey_to_im
 from ..targets import Target, TargetError, resolve_target
 from .conversions import camera_info_msg
 
+
+class ParameterError(PascalCalibError):
+    """A node parameter that cannot work (refused at start, exit code 2, or at run time)."""
 
 @dataclass(frozen=True)
 class Param:
@@ -138,7 +142,7 @@ class CalibrationNode(Node):
             self.declare_parameter(p.name, p.default, desc)
         problems = self._validate({p.name: self.get_parameter(p.name).value for p in PARAMS})
         if problems:
-            raise ValueError("invalid parameters: " + "; ".join(problems))
+            raise ParameterError("invalid parameters: " + "; ".join(problems))
         self.target: Target = resolve_target(self.p("target"))
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
@@ -498,12 +502,16 @@ class CalibrationNode(Node):
                 rejections = f"rejections: {rejected or 'none'}"
                 dropped = self.dropped_note()
                 moving = rejected.get(MOVING, 0)
+                # every cause that applies, the most frequent first: frames dropped unexamined, moving frames
+                causes = []
+                if moving and moving >= sum(rejected.values()) / 2:
+                    causes.append(f"{moving} frame(s) were moving (features moved max_motion_px "
+                                  f"{self.gate.max_motion_px:g} px or more between frames, or the robot moved): hold "
+                                  "the target and the arm still at each pose")
                 if dropped:
-                    msg = f"{len(views)} view(s) collected; need {min_views}. {dropped} ({rejections})"
-                elif moving and moving >= sum(rejected.values()) / 2:
-                    msg = (f"{len(views)} view(s) collected; need {min_views}. {moving} frame(s) were moving "
-                           f"(features moved max_motion_px {self.gate.max_motion_px:g} px or more between frames, "
-                           f"or the robot moved): hold the target and the arm still at each pose ({rejections})")
+                    causes.insert(0 if self.session_frames()[1] > moving else len(causes), dropped)
+                if causes:
+                    msg = f"{len(views)} view(s) collected; need {min_views}. {'. '.join(causes)} ({rejections})"
                 elif self.p("collect") == "on_capture":
                     msg = (f"{len(views)} view(s) collected; need {min_views}. Call ~/capture at each pose "
                            f"(collect:=on_capture; {rejections})")
@@ -780,7 +788,7 @@ class CalibrationNode(Node):
 def main(args: list[str] | None = None) -> int:
     from .spin import run_node
 
-    return run_node(CalibrationNode, (ValueError, TargetError), "pascal_calib",
+    return run_node(CalibrationNode, (PascalCalibError,), "pascal_calib",
                     lambda: MultiThreadedExecutor(num_threads=6), args)
 
 

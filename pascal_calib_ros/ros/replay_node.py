@@ -434,7 +434,7 @@ def main(args: list[str] | None = None) -> int:
         nodes.append(ReplayNode())
         return nodes[-1]
 
-    code = run_node(make_node, (ReplayError, BagError, ImageReadError), "image_replay", SingleThreadedExecutor, args)
+    code = run_node(make_node, (PascalCalibError,), "image_replay", SingleThreadedExecutor, args)
     return 1 if code == 0 and nodes and nodes[0].failed else code
 
 
