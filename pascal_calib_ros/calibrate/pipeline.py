@@ -159,6 +159,8 @@ def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions
     if opt.method == "zhang":
         return _zhang(dets, target, opt, reports, w, h)
     lens = DISTORTION_CHOICES[opt.distortion][0]
+    if not lens.wide:
+        _refuse_beyond_pinhole_field([dets[k] for k in usable], target, lens, w, h)
     start = closed_form_start(dets, usable, target, opt, reports)
     if not opt.refine:
         if lens.wide:
@@ -434,6 +436,30 @@ def _shape_warnings(shape: dict[str, float], std: dict[str, float], effect: dict
 
 
 MISFIT_RMS = 0.5  # px of edge RMS above which a pinhole model is checked against a fisheye one
+
+
+PINHOLE_MAX_FIELD_DEG = 85.0  # rays this far from the axis are beyond what an x/z model can describe
+
+
+def _refuse_beyond_pinhole_field(usable: list[Detection], target: Target, lens: LensModel, w: int, h: int) -> None:
+    """A pinhole model (x = X/Z) cannot describe rays near or beyond 90 degrees, but fitted to a
+    fisheye it may still reach a small RMS in one of several minima (which one was seen to change
+    with the BLAS kernel, as was whether it drops the views at the rim as outliers). The field
+    every usable view covers is estimated independently of the fit, with the generic fisheye lens
+    r = f theta of :func:`equidistant_focal`; a field wider than PINHOLE_MAX_FIELD_DEG is refused."""
+    pts = np.concatenate([e.points for d in usable for e in d.edges])
+    r = np.hypot(pts[:, 0] - w / 2, pts[:, 1] - h / 2)
+    r_far = float(np.percentile(r, 99.9))
+    from dataclasses import replace
+
+    # a rough f is all this needs: a quarter of the edge points of at most 12 views
+    sparse = [replace(d, edges=[replace(e, points=e.points[::4]) for e in d.edges])
+              for d in usable[:: max(1, len(usable) // 12)]]
+    field = float(np.degrees(r_far / equidistant_focal(sparse, target)))
+    if field > PINHOLE_MAX_FIELD_DEG:
+        raise CalibrationError(f"the views see rays up to about {field:.0f} degrees from the optical axis (estimated "
+                               f"with a generic fisheye lens); a {lens.name} model (x/z) cannot describe rays near "
+                               "or beyond 90 degrees: use --distortion equidistant (fisheye)")
 
 
 def _refuse_if_fisheye_fits(dets: list[Detection], target: Target, opt: CalibrationOptions, rms: float) -> None:

@@ -182,26 +182,27 @@ def _virtual_pinhole(p: np.ndarray, f: float, centre: np.ndarray) -> np.ndarray:
 
 
 def _conic_misfit(dets: list[Detection], f: float) -> float:
-    """Mean relative algebraic misfit of the edges as conics in the virtual pinhole image."""
-    total, count = 0.0, 0
+    """Mean relative algebraic misfit of the edges as conics in the virtual pinhole image (all
+    edges of all views in one batched fit)."""
+    pts = []
     for d in dets:
         centre = np.array([d.width / 2, d.height / 2])
-        pts = [_virtual_pinhole(e.points, f, centre) for e in d.edges]
-        pts = [p[np.all(np.isfinite(p), 1)] for p in pts]
-        pts = [p for p in pts if len(p) >= 20]
-        if not pts:
-            continue
-        owner = np.repeat(np.arange(len(pts)), [len(p) for p in pts])
-        allp = np.concatenate(pts)
-        conics, ok = fit_conics_algebraic(allp, owner, len(pts))
-        par, real = ellipses_from_conics(conics)
-        dist = sampson_distances(conics, allp, owner)
-        for k in range(len(pts)):
-            if ok[k] and real[k]:
-                size = float(np.sqrt(max(par[k, 2] * par[k, 3], 1e-12)))
-                total += float(np.sqrt(np.mean(dist[owner == k] ** 2))) / size
-                count += 1
-    return total / count if count else float("inf")
+        for e in d.edges:
+            p = _virtual_pinhole(e.points, f, centre)
+            p = p[np.all(np.isfinite(p), 1)]
+            if len(p) >= 20:
+                pts.append(p)
+    if not pts:
+        return float("inf")
+    owner = np.repeat(np.arange(len(pts)), [len(p) for p in pts])
+    allp = np.concatenate(pts)
+    conics, ok = fit_conics_algebraic(allp, owner, len(pts))
+    par, real = ellipses_from_conics(conics)
+    dist = sampson_distances(conics, allp, owner)
+    rms = np.sqrt(np.bincount(owner, dist * dist, len(pts)) / np.bincount(owner, minlength=len(pts)))
+    size = np.sqrt(np.maximum(par[:, 2] * par[:, 3], 1e-12))
+    good = ok & real
+    return float(np.mean(rms[good] / size[good])) if good.any() else float("inf")
 
 
 def _golden_log(fun: Callable[[float], float], lo: float, hi: float, iterations: int = 50) -> float:
