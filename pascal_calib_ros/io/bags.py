@@ -93,16 +93,21 @@ def read_images(path: str | Path, topic: str = "") -> Iterator[BagImage]:
             conns = [c for c in reader.connections if c.topic == topic]
             for conn, ts, raw in reader.messages(connections=conns):
                 msg = store.deserialize_cdr(raw, conn.msgtype)
-                if conn.msgtype == IMAGE_TYPE:
-                    fields = {"height": msg.height, "width": msg.width, "encoding": msg.encoding,
-                              "is_bigendian": msg.is_bigendian, "step": msg.step, "data": bytes(msg.data)}
-                else:
-                    fields = {"format": msg.format, "data": bytes(msg.data)}
-                yield BagImage(int(ts), conn.msgtype, fields, str(msg.header.frame_id), _stamp_ns(msg.header))
+                yield _bag_image(msg, conn.msgtype, ts)
     except BagError:
         raise
     except Exception as e:
         raise BagError(f"bag {p} is corrupt or truncated: {type(e).__name__}: {e}") from None
+
+
+def _bag_image(msg: Any, msgtype: str, ts: int) -> BagImage:
+    """An Image or CompressedImage message of a bag as a BagImage (fields as the ROS message)."""
+    if msgtype == IMAGE_TYPE:
+        fields = {"height": msg.height, "width": msg.width, "encoding": msg.encoding,
+                  "is_bigendian": msg.is_bigendian, "step": msg.step, "data": bytes(msg.data)}
+    else:
+        fields = {"format": msg.format, "data": bytes(msg.data)}
+    return BagImage(int(ts), msgtype, fields, str(msg.header.frame_id), _stamp_ns(msg.header))
 
 
 def write_image_bag(out: str | Path, images: list[Path], topic: str = "/image", storage: str = "sqlite3",
@@ -212,13 +217,8 @@ def read_session(path: str | Path, image_topic: str = "", pose_topic: str = "") 
                     yield BagPose(int(ts), conn.msgtype, _stamp_ns(msg.header), str(msg.header.frame_id), child,
                                   (float(t.x), float(t.y), float(t.z)),
                                   (float(q.x), float(q.y), float(q.z), float(q.w)))
-                elif conn.msgtype == IMAGE_TYPE:
-                    fields = {"height": msg.height, "width": msg.width, "encoding": msg.encoding,
-                              "is_bigendian": msg.is_bigendian, "step": msg.step, "data": bytes(msg.data)}
-                    yield BagImage(int(ts), conn.msgtype, fields, str(msg.header.frame_id), _stamp_ns(msg.header))
                 else:
-                    fields = {"format": msg.format, "data": bytes(msg.data)}
-                    yield BagImage(int(ts), conn.msgtype, fields, str(msg.header.frame_id), _stamp_ns(msg.header))
+                    yield _bag_image(msg, conn.msgtype, ts)
     except BagError:
         raise
     except Exception as e:
