@@ -31,8 +31,12 @@ Steps:
    least squares from (R_A - I) t_X = R_X t_B - t_A; over all view pairs. Views whose robot pose
    disagrees grossly with the images (a wrong frame, a pose from another view) are dropped with
    the reason (tested against X and Y from the other views);
-5. the joint refinement (:class:`~.refine.ChainProblem`): K, D, X, Y, every view's camera pose
-   and edge offset, with the edges' robust loss; the chain is a measurement of each camera pose
+5. the joint refinement (:class:`~.refine.ChainProblem`): X, Y, every view's camera pose and
+   edge offset (and K, D only with ``HandEyeOptions.intrinsics="joint"``), with the edges' robust
+   loss. By default ("hold") K and D are those of step 1 (the images alone) and held: a
+   principal-point error acts like a constant camera rotation delta_c / f that X absorbs, and the
+   arm's errors, fitted through the chain, drag the principal point (and with it X's rotation)
+   further off than the images put it; the chain is a measurement of each camera pose
    with the arm's accuracy as its standard deviation (not a constraint: real arms are off by
    tenths of a millimetre, and deriving every camera pose from the robot pose makes the estimate
    follow the arm's errors). The arm's accuracy is estimated from the data (variance components:
@@ -42,7 +46,9 @@ Steps:
    covariance is inflated by kappa;
 6. the sigmas of X and Y: the larger per axis of the covariance of step 5 and a delete-a-group
    jackknife over the views (:func:`_jackknife`; it sees view-to-view detection biases and the
-   arm's systematic errors that the residuals' covariance does not).
+   arm's systematic errors that the residuals' covariance does not); with the intrinsics held,
+   their share added: the images-only covariance of K, D carried through dx / dtheta =
+   -A_xx^-1 A_xtheta (A the normal matrix of the refinement with the intrinsics free).
 """
 
 from __future__ import annotations
@@ -85,6 +91,9 @@ class HandEyeOptions:
     outlier_mm: float = 10.0  # a view whose chain disagrees by more than max(this, 8 x median) is dropped
     outlier_deg: float = 1.0
     jackknife_groups: int = 5  # the sigmas of X and Y also from a delete-a-group jackknife over the views (0: off)
+    # "hold": K and D from the images alone, held in the chain refinement (the chain informs X, Y and the poses
+    # only; the intrinsics' uncertainty is propagated into the sigmas of X and Y); "joint": estimated with the chain
+    intrinsics: str = "hold"
 
 
 @dataclass
@@ -585,12 +594,16 @@ def calibrate_hand_eye(dets: list[Detection], robot_poses: Sequence[Transform | 
     kept = [idx[i] for i in active]
 
     X, Y, Cf, sol_info = _refine_chain(views, M, X0, Y0, C0, cal, options, he, target, origin)
-    (K, D, std, rms, offsets, view_rms, edge_res, sig_t, sig_r, sx_t, sx_r, sy_t, sy_r, success) = sol_info
+    (K, D, std, rms, offsets, view_rms, edge_res, sig_t, sig_r, sx_t, sx_r, sy_t, sy_r, success, intr_sd) = sol_info
     if he.jackknife_groups >= 2 and len(views) >= 2 * he.jackknife_groups:
+        # the jackknife holds the intrinsics when they are held ("hold"): their share is added after
         jx_t, jx_r, jy_t, jy_r = _jackknife(views, M, X, Y, Cf, replace(cal, K=K, D=D), options, he, target,
                                             origin, sig_t, sig_r)
         sx_t, sx_r = np.maximum(sx_t, jx_t), np.maximum(sx_r, jx_r)
         sy_t, sy_r = np.maximum(sy_t, jy_t), np.maximum(sy_r, jy_r)
+    ix_t, ix_r, iy_t, iy_r = intr_sd
+    sx_t, sx_r = np.hypot(sx_t, ix_t), np.hypot(sx_r, ix_r)
+    sy_t, sy_r = np.hypot(sy_t, iy_t), np.hypot(sy_r, iy_r)
     mm, deg = chain_disagreement(M, X, Y, Cf, mode)
     for j, k in enumerate(kept):
         reports[k].used, reports[k].reason = True, ""
@@ -762,7 +775,8 @@ def _refine_chain(views: list[ViewData], M: list[Transform], X0: Transform, Y0: 
     scale = max(float(cal.rms), 0.01) if np.isfinite(cal.rms) else 0.05
     sig_t, sig_r = he.robot_sigma_mm / 1000, np.radians(he.robot_sigma_deg)
     chain = RobotChain(M, he.mode == "eye_in_hand", sig_r, sig_t, scale)
-    prob = ChainProblem(views, free, opt.edge_offsets, chain, 0.3, shape, frame, lens)
+    hold = he.intrinsics == "hold"
+    prob = ChainProblem(views, () if hold else free, opt.edge_offsets, chain, 0.3, shape, frame, lens)
     xy = np.r_[X0.rotvec, X0.translation, Y0.rotvec, Y0.translation]
     x = prob.pack_chain(intr0, [np.r_[c.rotvec, c.translation] for c in C0], np.zeros(len(views)), xy)
     rows_r, rows_t = prob.chain_rows()
@@ -815,14 +829,36 @@ def _refine_chain(views: list[ViewData], M: list[Transform], X0: Transform, Y0: 
     std = {names[i]: float(np.sqrt(max(cov[k, k], 0.0))) for k, i in enumerate(prob.free)}
     b = prob.n_base
 
-    def stds(off: int, rv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def stds(off: int, rv: np.ndarray, cov: np.ndarray = cov) -> tuple[np.ndarray, np.ndarray]:
         J = _rot_jacobian(rv)
         cr = J @ cov[b + off:b + off + 3, b + off:b + off + 3] @ J.T
         ct = cov[b + off + 3:b + off + 6, b + off + 3:b + off + 6]
         return 1000 * np.sqrt(np.maximum(np.diag(ct), 0)), np.degrees(np.sqrt(np.maximum(np.diag(cr), 0)))
 
+    if hold:
+        # the intrinsics' error moves X and Y by dx/dtheta = -A_rr^-1 A_rtheta (A of the joint problem with the
+        # intrinsics free); their covariance is that of the images alone (the chain rows weighed zero)
+        shape_v = prob.unpack(x, intr0)[1]
+        full = ChainProblem(views, free, opt.edge_offsets, chain, 0.3, shape, frame, lens)
+        xf = full.pack_chain(intr, [p.copy() for p in poses], offsets, xy, shape_v)
+        ff, Jg_f, Jv_f = full.evaluate(xf, intr)
+        wf = full.robust_weights(ff, 0.3)
+        Af, _ = full.normal_equations(ff, Jg_f, Jv_f, wf)
+        wi = wf.copy()
+        wi[full.n_robust:] = 0.0
+        Ai, _ = full.normal_equations(ff, Jg_f, Jv_f, wi)
+        nf = len(full.free)
+        cov_th = np.linalg.pinv(Ai)[:nf, :nf] * s2 * kappa
+        S = -np.linalg.pinv(Af[nf:, nf:]) @ Af[nf:, :nf]
+        cov_i = S @ cov_th @ S.T
+        std = {names[i]: float(np.sqrt(max(cov_th[k, k], 0.0))) for k, i in enumerate(full.free)}
+    else:
+        cov_i = np.zeros_like(cov)
     sx_t, sx_r = stds(0, xy[0:3])
     sy_t, sy_r = stds(6, xy[6:9])
+    # the intrinsics' share (zero when they are estimated with the chain: then in cov)
+    ix_t, ix_r = stds(0, xy[0:3], cov_i)
+    iy_t, iy_r = stds(6, xy[6:9], cov_i)
     K = np.array([[intr[0], intr[4], intr[2]], [0, intr[1], intr[3]], [0, 0, 1.0]])
     D = intr[5:].copy()
     er = f[: prob.n_edge]
@@ -845,7 +881,7 @@ def _refine_chain(views: list[ViewData], M: list[Transform], X0: Transform, Y0: 
     Y = Transform.from_rotvec(xy[6:9], xy[9:12])
     Cf = [Transform.from_rotvec(p[:3], p[3:6]) for p in poses]
     return X, Y, Cf, (K, D, std, rms, offsets, view_rms, edge_res, err_mm, err_deg, sx_t, sx_r, sy_t, sy_r,
-                      bool(sol.success))
+                      bool(sol.success), (ix_t, ix_r, iy_t, iy_r))
 
 
 __all__ = ["HAND_EYE_MODES", "HandEyeError", "HandEyeOptions", "HandEyeResult", "ViewReport", "calibrate_hand_eye",
