@@ -159,8 +159,6 @@ def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions
     if opt.method == "zhang":
         return _zhang(dets, target, opt, reports, w, h)
     lens = DISTORTION_CHOICES[opt.distortion][0]
-    if not lens.wide:
-        _refuse_beyond_pinhole_field([dets[k] for k in usable], target, lens, w, h)
     start = closed_form_start(dets, usable, target, opt, reports)
     if not opt.refine:
         if lens.wide:
@@ -194,6 +192,8 @@ def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions
         reports[k].rms = float(res.view_rms[j])
         reports[k].edge_offset = float(res.offsets[j])
     _check_result(res, w, h, warnings)
+    if not lens.wide:
+        _refuse_beyond_pinhole_field([dets[k] for k in usable], target, lens, w, h, res.K[0, 0])
     folded = _check_model_fits(res, views, lens, w, h)
     if not lens.wide and res.rms > MISFIT_RMS:
         _refuse_if_fisheye_fits(dets, target, opt, res.rms)
@@ -439,9 +439,11 @@ MISFIT_RMS = 0.5  # px of edge RMS above which a pinhole model is checked agains
 
 
 PINHOLE_MAX_FIELD_DEG = 85.0  # rays this far from the axis are beyond what an x/z model can describe
+PINHOLE_CHECK_RATIO = 0.7  # the field is estimated only when the edges reach r > 0.7 fx of the fit
 
 
-def _refuse_beyond_pinhole_field(usable: list[Detection], target: Target, lens: LensModel, w: int, h: int) -> None:
+def _refuse_beyond_pinhole_field(usable: list[Detection], target: Target, lens: LensModel, w: int, h: int,
+                                 fx: float) -> None:
     """A pinhole model (x = X/Z) cannot describe rays near or beyond 90 degrees, but fitted to a
     fisheye it may still reach a small RMS in one of several minima (which one was seen to change
     with the BLAS kernel, as was whether it drops the views at the rim as outliers). The field
@@ -450,6 +452,8 @@ def _refuse_beyond_pinhole_field(usable: list[Detection], target: Target, lens: 
     pts = np.concatenate([e.points for d in usable for e in d.edges])
     r = np.hypot(pts[:, 0] - w / 2, pts[:, 1] - h / 2)
     r_far = float(np.percentile(r, 99.9))
+    if r_far < PINHOLE_CHECK_RATIO * fx:
+        return  # the fitted pinhole itself puts every edge within ~35 degrees: nothing to check
     from dataclasses import replace
 
     # a rough f is all this needs: a quarter of the edge points of at most 12 views

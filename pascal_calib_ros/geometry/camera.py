@@ -93,12 +93,15 @@ def project_with_jacobians(X: np.ndarray, K: np.ndarray, D: np.ndarray, lens: Le
     fx, s, fy = K[0, 0], K[0, 1], K[1, 1]
     xd, dxdX, dxdD = lens.distort_with_jacobians(np.asarray(X, float), D)
     q = normalized_to_pixels(xd, K)
-    A = np.array([[fx, s], [0.0, fy]])
-    dX = np.einsum("ij,njk->nik", A, dxdX)
+    # the affine part of K applied to d x_d / d(...): rows (fx, s) and (0, fy)
+    dX = np.empty_like(dxdX)
+    dX[:, 0] = fx * dxdX[:, 0] + s * dxdX[:, 1]
+    dX[:, 1] = fy * dxdX[:, 1]
     dI = np.zeros((len(q), 2, 5 + lens.n))
     dI[:, 0, 0], dI[:, 0, 2], dI[:, 0, 4] = xd[:, 0], 1.0, xd[:, 1]
     dI[:, 1, 1], dI[:, 1, 3] = xd[:, 1], 1.0
-    dI[:, :, 5:] = np.einsum("ij,njk->nik", A, dxdD)
+    dI[:, 0, 5:] = fx * dxdD[:, 0] + s * dxdD[:, 1]
+    dI[:, 1, 5:] = fy * dxdD[:, 1]
     return q, dX, dI
 
 
