@@ -6,7 +6,7 @@ with the ring's vanishing line, Newton), ``huang`` (two separated coplanar circl
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -333,8 +333,6 @@ def pose_with_camera(det: Detection, target: Target, camera: Camera, origin: tup
     (focal fx), where the circles are exact conics again; the pose found there by
     :func:`pose_from_circles` (grids) or :func:`pose_from_view` is turned back (R = Q^T R_v,
     t = Q^T t_v)."""
-    from dataclasses import replace
-
     rays = [camera.unproject(e.points) for e in det.edges]
     allr = np.concatenate(rays) if rays else np.zeros((0, 3))
     allr = allr[np.all(np.isfinite(allr), 1)]

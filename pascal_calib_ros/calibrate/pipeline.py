@@ -6,7 +6,7 @@ kept as reasons beside the views rather than raised.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -209,8 +209,6 @@ def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions
 def _checked_options(options: CalibrationOptions, target: Target) -> CalibrationOptions:
     """The options with the target's default method filled in; a CalibrationError for any that
     cannot work with this target."""
-    from dataclasses import replace
-
     opt = replace(options, method=options.method or target.default_method())
     if opt.method not in METHODS:
         raise CalibrationError(f"unknown method {opt.method!r}; choose one of {', '.join(METHODS)}")
@@ -454,8 +452,6 @@ def _refuse_beyond_pinhole_field(usable: list[Detection], target: Target, lens: 
     r_far = float(np.percentile(r, 99.9))
     if r_far < PINHOLE_CHECK_RATIO * fx:
         return  # the fitted pinhole itself puts every edge within ~35 degrees: nothing to check
-    from dataclasses import replace
-
     # a rough f is all this needs: a quarter of the edge points of at most 12 views
     sparse = [replace(d, edges=[replace(e, points=e.points[::4]) for e in d.edges])
               for d in usable[:: max(1, len(usable) // 12)]]
@@ -470,8 +466,6 @@ def _refuse_if_fisheye_fits(dets: list[Detection], target: Target, opt: Calibrat
     """A pinhole polynomial fitted to a fisheye does not fold, it just fits badly: when the edge
     RMS is high, the equidistant model is tried on the same views; if it fits three times better
     the result is refused and the model named, rather than a camera that is wrong everywhere."""
-    from dataclasses import replace
-
     try:
         fish = calibrate(dets, target, replace(opt, distortion="equidistant"))
     except CalibrationError:

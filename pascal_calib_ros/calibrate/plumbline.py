@@ -17,6 +17,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..detect.detection import Detection
+from ..geometry.camera import Camera
 from ..geometry.conic import ellipses_from_conics, fit_conics_algebraic, sampson_distances
 from ..targets import Target
 
@@ -136,13 +137,15 @@ def plumb_bob_from_division(lam: float, f: float, r_max: float, with_k2: bool = 
 VIRTUAL_MAX_ANGLE = np.radians(70.0)
 
 
+def generic_fisheye(f: float, centre: np.ndarray) -> Camera:
+    """The generic equidistant lens r = f theta (no coefficients) centred at ``centre``."""
+    return Camera(np.array([[f, 0.0, centre[0]], [0.0, f, centre[1]], [0.0, 0.0, 1.0]]), np.zeros(4),
+                  model="equidistant")
+
+
 def equidistant_rays(p: np.ndarray, f: float, centre: np.ndarray) -> np.ndarray:
     """Unit rays (N, 3) of pixels under the generic equidistant lens r = f theta."""
-    d = p - centre
-    r = np.hypot(d[:, 0], d[:, 1])
-    theta = r / f
-    s = np.sin(theta) / np.where(r > 0, r, 1.0)
-    return np.stack([d[:, 0] * s, d[:, 1] * s, np.cos(theta)], 1)
+    return generic_fisheye(f, centre).lens.undistort((p - centre) / f, np.zeros(4), strict=False)
 
 
 def _corner_lines(det: Detection, target: Target) -> list[np.ndarray]:
@@ -172,13 +175,9 @@ def _ray_planarity(lines: _Lines, f: float, centre: np.ndarray) -> float:
 def _virtual_pinhole(p: np.ndarray, f: float, centre: np.ndarray) -> np.ndarray:
     """Pixels of the virtual pinhole camera (focal f, principal point ``centre``) seeing the rays
     of the equidistant guess; NaN beyond VIRTUAL_MAX_ANGLE."""
-    d = p - centre
-    r = np.hypot(d[:, 0], d[:, 1])
-    theta = r / f
-    scale = np.where(theta < VIRTUAL_MAX_ANGLE, f * np.tan(np.minimum(theta, VIRTUAL_MAX_ANGLE))
-                     / np.where(r > 0, r, 1.0), np.nan)
-    scale = np.where(r > 0, scale, 1.0)
-    return centre + d * scale[:, None]
+    rays = equidistant_rays(p, f, centre)
+    rays[rays[:, 2] <= np.cos(VIRTUAL_MAX_ANGLE)] = np.nan
+    return Camera.from_params(f, f, float(centre[0]), float(centre[1])).project(rays)
 
 
 def _conic_misfit(dets: list[Detection], f: float) -> float:

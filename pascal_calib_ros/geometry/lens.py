@@ -106,11 +106,13 @@ class PolynomialModel(LensModel):
         dradial = ((k1 + r2 * (2 * k2 + 3 * k3 * r2)) * den - num * (k4 + r2 * (2 * k5 + 3 * k6 * r2))) / (den * den)
         return r2, den, num / den, dradial
 
-    def _jacobian_xy(self, xy: np.ndarray, D: np.ndarray) -> tuple[np.ndarray, ...]:
-        """d x_d / d (x, y) as (a, b, c, d) = (dxd/dx, dxd/dy, dyd/dx, dyd/dy)."""
+    def _jacobian_xy(self, xy: np.ndarray, D: np.ndarray, radial_terms: tuple[np.ndarray, ...] | None = None
+                     ) -> tuple[np.ndarray, ...]:
+        """d x_d / d (x, y) as (a, b, c, d) = (dxd/dx, dxd/dy, dyd/dx, dyd/dy); ``radial_terms``:
+        :meth:`_radial` of the same points, if the caller has it."""
         p1, p2 = self._d8(D)[2:4]
         x, y = xy[..., 0], xy[..., 1]
-        _, _, radial, dradial = self._radial(xy, D)
+        _, _, radial, dradial = radial_terms if radial_terms is not None else self._radial(xy, D)
         b = 2 * x * y * dradial + 2 * p1 * x + 2 * p2 * y
         return (radial + 2 * x * x * dradial + 2 * p1 * y + 6 * p2 * x, b, b,
                 radial + 2 * y * y * dradial + 6 * p1 * y + 2 * p2 * x)
@@ -118,8 +120,9 @@ class PolynomialModel(LensModel):
     def _normalized_jacobians(self, xy: np.ndarray, D: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """d x_d / d (x, y) (..., 2, 2) and d x_d / d D (..., 2, n)."""
         x, y = xy[..., 0], xy[..., 1]
-        r2, den, radial, _ = self._radial(xy, D)
-        a, b, c, d = self._jacobian_xy(xy, D)
+        terms = self._radial(xy, D)
+        r2, den, radial, _ = terms
+        a, b, c, d = self._jacobian_xy(xy, D, terms)
         J = np.stack([np.stack([a, b], -1), np.stack([c, d], -1)], -2)
         r4, r6 = r2 * r2, r2 * r2 * r2
         xs, ys = x / den, y / den
