@@ -69,7 +69,7 @@ from ..geometry.lens import DISTORTION_CHOICES
 from ..geometry.transform import Transform
 from ..targets import Target
 from .initial import pose_with_camera
-from .pipeline import CalibrationError, CalibrationOptions, CalibrationResult, ViewReport, calibrate, view_data
+from .pipeline import CalibrationError, CalibrationOptions, CalibrationResult, ViewReport, calibrate, observations
 from .refine import ChainProblem, Problem, RobotChain, ViewData, levenberg_marquardt, shape_frame_of
 
 HAND_EYE_MODES = ("eye_in_hand", "eye_to_hand")
@@ -394,19 +394,6 @@ def _origin(target: Target) -> tuple[float, float]:
     return target.circles[0].center if target.circles else (0.0, 0.0)
 
 
-def _observations(det: Detection, target: Target, origin: tuple[float, float], opt: CalibrationOptions
-                  ) -> ViewData:
-    if det.edges:
-        n_edges = max(len(det.edges), 1)
-        per_edge = max(8, min(opt.max_points_per_edge, opt.max_points_per_view // n_edges))
-        return view_data(det, target, origin, per_edge, opt.use_corners)
-    vd = ViewData(np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0), np.zeros(0), np.zeros(0, int))
-    if det.corners is not None and target.checkerboard is not None:
-        vd.corners = det.corners
-        vd.corner_obj = target.checkerboard.corner_points() - np.array(origin)
-    return vd
-
-
 def _camera_pose(det: Detection, target: Target, cam: Camera, origin: tuple[float, float]) -> Transform:
     """Target (local frame) -> camera for one view with the calibrated camera."""
     if det.edges:
@@ -497,7 +484,7 @@ def calibrate_hand_eye(dets: list[Detection], robot_poses: Sequence[Transform | 
     for k, rep in enumerate(reports):
         if not rep.used:
             continue
-        vd = _observations(dets[k], target, origin, options)
+        vd = observations(dets[k], target, origin, options)
         try:
             C.append(_polished_pose(vd, _camera_pose(dets[k], target, cam, origin), cam, options,
                                     5 if axisymmetric else 6))

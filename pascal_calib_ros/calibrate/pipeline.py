@@ -128,8 +128,10 @@ class CalibrationResult:
 
 def view_data(det: Detection, target: Target, origin: tuple[float, float], max_points: int,
               use_corners: bool) -> ViewData:
-    """Flatten a detection into refinement observations (edge points subsampled evenly)."""
-    pts, ctr, rad, sgn, ids = [], [], [], [], []
+    """Flatten a detection into refinement observations (edge points subsampled evenly; a view
+    with checkerboard corners only has no edge rows)."""
+    pts, ctr, rad, sgn, ids = [np.zeros((0, 2))], [np.zeros((0, 2))], [np.zeros(0)], [np.zeros(0, int)], \
+        [np.zeros(0, int)]
     for e in det.edges:
         c = target.circles[e.circle]
         p = e.points
@@ -318,13 +320,14 @@ def _start_poses(dets: list[Detection], start: ClosedFormStart, target: Target, 
         except (CircularPointError, np.linalg.LinAlgError) as exc:
             reports[k].used, reports[k].reason = False, f"pose: {exc}"
             continue
-        views.append(_observations(dets[k], target, origin, opt))
+        views.append(observations(dets[k], target, origin, opt))
         poses0.append(pose_to_params(pose, dof))
         idx.append(k)
     return views, poses0, idx
 
 
-def _observations(det: Detection, target: Target, origin: tuple[float, float], opt: CalibrationOptions) -> ViewData:
+def observations(det: Detection, target: Target, origin: tuple[float, float], opt: CalibrationOptions) -> ViewData:
+    """:func:`view_data` with the options' budget of points per edge and per view."""
     n_edges = max(len(det.edges), 1)
     per_edge = max(8, min(opt.max_points_per_edge, opt.max_points_per_view // n_edges))
     return view_data(det, target, origin, per_edge, opt.use_corners)
@@ -378,7 +381,7 @@ def _add_views_without_start(res: RefineResult, views: list[ViewData], idx: list
         except (CircularPointError, np.linalg.LinAlgError, ValueError) as exc:
             reports[k].reason = f"{reports[k].reason}; pose with the refined camera: {exc}"
             continue
-        new_views.append(_observations(dets[k], target, origin, opt))
+        new_views.append(observations(dets[k], target, origin, opt))
         new_poses.append(pose_to_params(pose, dof))
         new_idx.append(k)
     if not new_idx:
