@@ -27,6 +27,12 @@ def run_node(make_node: Callable[[], Any], errors: tuple[type[BaseException], ..
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception:
+        # SIGINT/SIGTERM shut the context down from rclpy's signal handler; a worker of the
+        # multi-threaded executor may then meet the invalid context (RCLError) before spin sees
+        # the shutdown: that is the same shutdown, not a failure
+        if rclpy.ok():
+            raise
     finally:
         node.stop()
         executor.shutdown()
