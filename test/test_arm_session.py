@@ -114,6 +114,25 @@ def test_pose_buffer_interpolates_and_refuses_old_poses() -> None:
     assert len(small) <= 11 and small.received == 50
 
 
+def test_pose_buffer_waits_for_the_pose_of_a_newer_image() -> None:
+    """An image examined before the pose published for it (another topic, another callback)
+    waits for it instead of being refused; without one it gives up after the timeout."""
+    buf = PoseBuffer()
+    a = Transform.from_rotvec([0, 0, 0.0], [0.0, 0.0, 0.5])
+    buf.add(10 * S, a)
+    assert buf.wait_until_covers(10 * S, 1.0)  # already there: no wait
+    t0 = time.monotonic()
+    assert not buf.wait_until_covers(11 * S, 0.05)
+    assert time.monotonic() - t0 >= 0.04
+    late = threading.Timer(0.05, buf.add, args=(11 * S, a))
+    late.start()
+    t0 = time.monotonic()
+    assert buf.wait_until_covers(11 * S, 5.0)
+    assert time.monotonic() - t0 < 4.0
+    late.join()
+    assert buf.lookup(11 * S, 0.1)[0] is a
+
+
 def test_robot_motion_between_frames_refuses_them(frames: dict[str, Detection]) -> None:
     buf = PoseBuffer()
     rest = Transform.from_rotvec([0.1, 0.2, 0.3], [0.4, 0.0, 0.5])

@@ -202,7 +202,7 @@ def test_lockstep_replay_of_an_arm_session_reproduces_it(tmp_path: Path, arm_bag
         assert client.spin_until(lambda: latest_status(status).get("frames_examined") == str(n_frames), 5)
         kv = latest_status(status)
         assert kv["rejected: moving"] == str(ARM_VIEWS) and kv["max_motion_px"] == "0.5", kv
-        assert kv["views_accepted"] == str(n_frames - ARM_VIEWS) == kv["views_with_robot_pose"], kv
+        assert kv["views_accepted"] == str(n_frames - ARM_VIEWS) == kv["views_with_robot_pose"], str(kv)
         assert kv["frames_dropped"] == "0" and kv["robot_pose_error"] == "", kv
     finally:
         client.close()

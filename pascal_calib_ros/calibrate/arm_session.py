@@ -90,6 +90,7 @@ class PoseBuffer:
         self._stamps: list[int] = []
         self._poses: list[Transform] = []
         self._lock = threading.Lock()
+        self._arrived = threading.Condition(self._lock)
         self.received = 0
 
     def __len__(self) -> int:
@@ -108,6 +109,15 @@ class PoseBuffer:
             cut = max(cut, len(self._stamps) - self.max_samples)
             if cut > 0:
                 del self._stamps[:cut], self._poses[:cut]
+            self._arrived.notify_all()
+
+    def wait_until_covers(self, stamp_ns: int, timeout_s: float) -> bool:
+        """Wait (at most ``timeout_s``) until a sample at or after ``stamp_ns`` has arrived: an
+        image and the pose published for it come on different topics, and the image may be
+        examined first (tf2's message filter waits the same way). True if one has arrived."""
+        with self._arrived:
+            return self._arrived.wait_for(lambda: bool(self._stamps) and self._stamps[-1] >= stamp_ns,
+                                          timeout=max(timeout_s, 0.0))
 
     def clear(self) -> None:
         with self._lock:

@@ -115,7 +115,8 @@ PARAMS = (
     Param("robot_pose_topic", "", "geometry_msgs/PoseStamped or TransformStamped of the tool in the robot base "
           "(empty: no robot poses)"),
     Param("pose_max_age", 0.1, "a view's robot pose is interpolated from samples at most this many seconds "
-          "from its image stamp", float_range=(0.001, 10.0)),
+          "from its image stamp; a frame waits up to this long (wall time) for a pose sample at or after "
+          "its stamp", float_range=(0.001, 10.0)),
     Param("robot_base_frame", "base_link", "the robot base frame (robot poses must be in it)"),
     Param("robot_tool_frame", "tool0", "the robot tool (flange) frame the poses describe"),
     Param("camera_frame", "camera_optical_frame", "child frame of the published hand-eye transform"),
@@ -371,6 +372,8 @@ class CalibrationNode(Node):
         params = DetectionParams.for_lens(lens_model(str(self.p("distortion_model"))).wide)
         det = detect_target(img, target, params, name=f"frame_{self.frames_received:06d}")
         stamp_ns = int(msg.header.stamp.sec) * 10**9 + int(msg.header.stamp.nanosec)
+        if self.poses is not None:  # the pose for this stamp may still be on its way (another topic)
+            self.poses.wait_until_covers(stamp_ns, float(self.p("pose_max_age")))
         verdict = self.gate.examine(det, stamp_ns, self.poses, float(self.p("pose_max_age")))
         capture = self.captures.for_frame(received_at)
         answer: tuple[bool, str] | None = None
