@@ -16,21 +16,33 @@ import numpy as np
 from ..geometry.camera import Camera
 
 
-def observed_field_mask(points_per_view: list[np.ndarray], width: int, height: int, margin: float = 0.0
-                        ) -> np.ndarray:
-    """(height, width) bool: pixels inside the convex hull of some view's points, grown by
-    ``margin`` pixels."""
-    mask = np.zeros((height, width), np.uint8)
+def view_hulls(points_per_view: list[np.ndarray]) -> list[np.ndarray]:
+    """The convex hull (K, 2) of each view's finite points (views with fewer than 3 left out)."""
+    hulls = []
     for p in points_per_view:
         p = np.asarray(p, float).reshape(-1, 2)
         p = p[np.all(np.isfinite(p), 1)]
         if len(p) >= 3:
-            hull = cv2.convexHull(np.round(p).astype(np.int32))
-            cv2.fillConvexPoly(mask, hull, 1)
+            hulls.append(cv2.convexHull(p.astype(np.float32)).reshape(-1, 2).astype(float))
+    return hulls
+
+
+def hulls_mask(hulls: list[np.ndarray], width: int, height: int, margin: float = 0.0) -> np.ndarray:
+    """(height, width) bool: pixels inside some polygon of ``hulls``, grown by ``margin`` pixels."""
+    mask = np.zeros((height, width), np.uint8)
+    for h in hulls:
+        cv2.fillConvexPoly(mask, np.round(np.asarray(h, float)).astype(np.int32).reshape(-1, 1, 2), 1)
     if margin > 0 and mask.any():
         k = round(2 * margin + 1)
         return np.asarray(cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))), bool)
     return mask.astype(bool)
+
+
+def observed_field_mask(points_per_view: list[np.ndarray], width: int, height: int, margin: float = 0.0
+                        ) -> np.ndarray:
+    """(height, width) bool: pixels inside the convex hull of some view's points, grown by
+    ``margin`` pixels."""
+    return hulls_mask(view_hulls(points_per_view), width, height, margin)
 
 
 def distortion_field(cam: Camera, step: int = 32, mask: np.ndarray | None = None

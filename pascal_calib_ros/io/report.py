@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ..calibrate.diagnostics import distortion_field, observed_field_mask
+from ..calibrate.diagnostics import distortion_field, observed_field_mask, view_hulls
 from ..calibrate.pipeline import CalibrationResult
 from ..detect.detection import Detection
 
@@ -59,7 +59,8 @@ def report_numbers(res: CalibrationResult, dets: list[Detection]) -> dict[str, A
         "residuals": {"per_view_rms_px": [float(np.sqrt(np.mean(r * r))) for r in res.edge_residuals],
                       "per_circle_rms_px": per_circle_rms(res),
                       "max_abs_px": float(max((np.max(np.abs(r)) for r in res.edge_residuals), default=0.0))},
-        "coverage": {"observed_fraction": covered, "image_fraction_inside_some_view": covered},
+        "coverage": {"observed_fraction": covered, "image_fraction_inside_some_view": covered,
+                     "view_hulls": [np.round(h, 2).tolist() for h in view_hulls(res.edge_points)]},
         "distortion_field": {"over": f"observed field + {FIELD_MARGIN:.0f} px", "max_px": float(mag.max()),
                              "mean_px": float(mag.mean())},
         "target_shape": {"estimated": {n: res.shape[n] for n in res.shape_std}, "std": res.shape_std,
