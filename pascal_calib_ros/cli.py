@@ -308,6 +308,55 @@ def cmd_target(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def cmd_diff(args: argparse.Namespace) -> int:
+    """Projection difference of calibration B against A after the implied rotation (mrcal's
+    projection_diff; :mod:`.calibrate.compare`), over the image or a report's observed field."""
+    from .calibrate.compare import camera_from_yaml, projection_difference, region_from_report
+    from .errors import PascalCalibError
+
+    try:
+        a, b = camera_from_yaml(args.a), camera_from_yaml(args.b)
+        mask = None if args.region == "image" else region_from_report(args.region).mask
+        res = projection_difference(a, b, mask, args.distance, args.step)
+    except PascalCalibError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return EXIT_INPUT
+    print(res.summary())
+    if res.n_excluded:
+        print(f"note: {res.n_excluded} grid point(s) left out (beyond the range of one of the models)", file=sys.stderr)
+    if args.plot:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        img, extent = res.image()
+        fig, ax = plt.subplots(figsize=(8.0, 6.0 * a.height / a.width + 1.2))
+        im = ax.imshow(img, extent=extent, origin="upper", interpolation="nearest", cmap="viridis")
+        if mask is not None:
+            ax.contour(mask.astype(np.uint8), levels=[0.5], colors="red", linewidths=1.0)
+        ax.set_xlim(0, a.width)
+        ax.set_ylim(a.height, 0)
+        ax.set_xlabel("u (px)")
+        ax.set_ylabel("v (px)")
+        rng = "infinity" if args.distance is None else f"{args.distance:g} m"
+        where = "image" if mask is None else f"{Path(args.region).name} (red outline)"
+        ax.set_title(f"{Path(args.b).name} against {Path(args.a).name}, range {rng}, region {where}\n"
+                     f"{res.summary()}", fontsize=9)
+        fig.colorbar(im, ax=ax, shrink=0.9, label="projection difference (px)")
+        fig.tight_layout()
+        try:
+            Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
+            fig.savefig(args.plot, dpi=100)
+        except (OSError, ValueError) as e:  # unwritable path, unknown image format
+            print(f"error: cannot write {args.plot}: {e}", file=sys.stderr)
+            return EXIT_INPUT
+        finally:
+            plt.close(fig)
+        print(f"wrote {args.plot}")
+    return EXIT_OK
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="pascal-calib", description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="command", required=True)
@@ -350,6 +399,20 @@ def build_parser() -> argparse.ArgumentParser:
     h.add_argument("--report", metavar="DIR", help="write report.png and report.json into DIR")
     h.add_argument("images", nargs="+", help="image files or folders")
     h.set_defaults(func=cmd_handeye)
+
+    df = sub.add_parser("diff", help="projection difference between two calibrations of one camera (after the "
+                                     "implied rotation, as mrcal-show-projection-diff)")
+    df.add_argument("a", metavar="A.yaml", help="camera_calibration_parsers YAML (the reference)")
+    df.add_argument("b", metavar="B.yaml", help="camera_calibration_parsers YAML compared against A")
+    df.add_argument("--region", default="image", metavar="image|REPORT_JSON",
+                    help="grid over the whole image (default) or over the observed field of a calibration "
+                         "report.json (coverage.view_hulls)")
+    df.add_argument("--distance", type=float, default=None, metavar="M",
+                    help="range of the compared points in metres (default: infinity, rotation-only fit; "
+                         "finite: rotation and translation are fitted)")
+    df.add_argument("--step", type=float, default=16.0, metavar="PX", help="grid spacing in pixels")
+    df.add_argument("--plot", metavar="OUT.png", help="write a heat map of the difference over the image")
+    df.set_defaults(func=cmd_diff)
 
     r = sub.add_parser("render", help="render a synthetic session with ground truth")
     r.add_argument("--target", default="ring_a4")
