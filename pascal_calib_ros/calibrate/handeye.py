@@ -71,6 +71,7 @@ from ..targets import Target
 from .initial import pose_with_camera
 from .pipeline import CalibrationError, CalibrationOptions, CalibrationResult, ViewReport, calibrate, observations
 from .refine import ChainProblem, Problem, RobotChain, ViewData, levenberg_marquardt, shape_frame_of
+from .uncertainty import correlation_factor
 
 HAND_EYE_MODES = ("eye_in_hand", "eye_to_hand")
 MIN_VIEWS = 3
@@ -633,83 +634,6 @@ def _complete_ring_poses(M: list[Transform], X: Transform, Y: Transform, C: list
             else Rotation.identity()
         out.append(Transform(turn * P.rotation, c.translation))
     return out
-
-
-def _lag_factor(chunks: list[np.ndarray], circular: bool, max_lag: int = 40) -> float:
-    """1 + 2 sum_k rho_k of residual sequences (pooled lag-k autocorrelations, summed while positive:
-    Geyer's initial positive sequence): the factor by which correlated neighbours reduce the
-    effective number of independent residuals."""
-    chunks = [c for c in chunks if len(c) >= 4]
-    if not chunks:
-        return 1.0
-    r0 = sum(float(c @ c) for c in chunks)
-    n0 = sum(len(c) for c in chunks)
-    if r0 <= 0:
-        return 1.0
-    var = r0 / n0
-    kappa = 1.0
-    for k in range(1, max_lag + 1):
-        num, cnt = 0.0, 0
-        for c in chunks:
-            if len(c) < 2 * k + 2:
-                continue
-            if circular:
-                num += float(c @ np.roll(c, -k))
-                cnt += len(c)
-            else:
-                num += float(c[:-k] @ c[k:])
-                cnt += len(c) - k
-        if cnt == 0:
-            break
-        rho = num / cnt / var
-        if rho <= 0.02:
-            break
-        kappa += 2 * rho
-    return kappa
-
-
-def correlation_factor(prob: Problem, views: list[ViewData], f: np.ndarray) -> float:
-    """How many times fewer independent observations the edges (or corners) hold than points:
-    neighbouring edge points (one contour of a circle, closed) and neighbouring checkerboard
-    corners (along the rows and the columns of the grid) err together (blur, sampling, the
-    sub-pixel locator). From the residuals' autocorrelation; 1 for independent residuals.
-    Weighting the edges by 1 / kappa against the chain and inflating their covariance by kappa
-    makes the reported sigmas honest."""
-    kap_e = kap_c = 1.0
-    n_e, n_c = prob.n_edge, prob.n_corner
-    if n_e:
-        er = f[:n_e]
-        chunks = []
-        for v, sl in enumerate(prob.edge_slices):
-            r, ids = er[sl], views[v].circle_ids
-            if len(r) != len(ids):
-                continue
-            cut = np.flatnonzero(np.diff(ids)) + 1
-            chunks += [c for c in np.split(r, cut)]
-        kap_e = _lag_factor(chunks, circular=True)
-    if n_c:
-        cr = f[n_e:n_e + 2 * n_c].reshape(-1, 2)
-        rows_, cols_ = [], []
-        for v in range(prob.nv):
-            sel = np.flatnonzero(prob.view_of_corner == v)
-            obj = views[v].corner_obj
-            if len(sel) < 9 or len(obj) != len(sel):
-                continue
-            xs, ys = np.unique(np.round(obj[:, 0], 6)), np.unique(np.round(obj[:, 1], 6))
-            if len(xs) * len(ys) != len(sel):
-                continue
-            ix = np.searchsorted(xs, np.round(obj[:, 0], 6))
-            iy = np.searchsorted(ys, np.round(obj[:, 1], 6))
-            grid = np.zeros((len(ys), len(xs), 2))
-            grid[iy, ix] = cr[sel]
-            for a in range(2):
-                rows_ += list(grid[:, :, a])
-                cols_ += list(grid[:, :, a].T)
-        if rows_:
-            kap_c = _lag_factor(rows_, circular=False, max_lag=6) * _lag_factor(cols_, circular=False, max_lag=6)
-    if n_e and n_c:
-        return float((n_e * kap_e + 2 * n_c * kap_c) / (n_e + 2 * n_c))
-    return float(kap_e if n_e else kap_c)
 
 
 def _jackknife(views: list[ViewData], M: list[Transform], X: Transform, Y: Transform, C: list[Transform],

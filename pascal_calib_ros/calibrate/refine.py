@@ -37,8 +37,15 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..geometry.camera import INTRINSIC_BASE, pixels_to_normalized, project_with_jacobians
+from ..geometry.camera import INTRINSIC_BASE, Camera, pixels_to_normalized, project_with_jacobians
 from ..geometry.lens import DISTORTION_CHOICES, PLUMB_BOB, LensModel
+from .uncertainty import (
+    ProjectionUncertainty,
+    correlation_factors,
+    projection_uncertainty,
+    row_variances,
+    sandwich_covariance,
+)
 
 # the plumb_bob parameter vector (other models: INTRINSIC_BASE + their coefficients)
 INTRINSIC_NAMES = INTRINSIC_BASE + PLUMB_BOB.coefficients
@@ -89,6 +96,34 @@ class RefineResult:
     # correlation of the estimated pitch ratio with the aspect ratio fy / fx (a mis-scaled print and non-square pixels
     # look alike unless views are tilted strongly about both axes)
     pitch_aspect_correlation: float = 0.0
+    # the solution vector, the problem that defines it and the parameters' covariance (uncertainty.py)
+    x: np.ndarray | None = None
+    problem: Problem | None = None
+    intr0: np.ndarray | None = None
+    covariance: np.ndarray | None = None
+    kappa: tuple[float, float] = (1.0, 1.0)  # correlation factors of the edge and the corner rows
+
+    def camera_of(self, x: np.ndarray) -> Camera:
+        """The camera of a parameter vector of :attr:`problem`."""
+        assert self.problem is not None and self.intr0 is not None
+        K, D = _camera(self.problem.unpack(x, self.intr0)[0])
+        return Camera(K, D, 0, 0, self.model)
+
+    def view_poses_of(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(R (V, 3, 3), t (V, 3)) of the views for a parameter vector of :attr:`problem`."""
+        assert self.problem is not None and self.intr0 is not None
+        R, _, t = self.problem.rotations(self.problem.unpack(x, self.intr0)[2])
+        return R, t
+
+    def projection_uncertainty(self, width: int, height: int, distance: float | None = None
+                               ) -> ProjectionUncertainty:
+        """:func:`uncertainty.projection_uncertainty` at ``distance`` (default: the views' median
+        target distance)."""
+        assert self.x is not None and self.covariance is not None
+        if distance is None:
+            distance = float(np.median(np.linalg.norm(self.view_poses_of(self.x)[1], axis=1)))
+        return projection_uncertainty(self.camera_of, self.view_poses_of, self.x, self.covariance, width, height,
+                                      distance)
 
 
 def rotations_with_jacobians(rvecs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -567,14 +602,16 @@ def refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[n
             sel = prob.view_of_corner == i
             if sel.any():
                 corner_rms[i] = float(np.sqrt(np.mean(np.sum(cr[sel] ** 2, 1))))
-    # standard deviations from the Gauss-Newton covariance s^2 (J^T W J)^-1
-    dof_res = max(len(sol.fun) - len(sol.x), 1)
-    s2 = float(np.sum(sol.weights * sol.fun**2) / dof_res)
+    # standard deviations from the sandwich covariance with correlated, per-view noise (uncertainty.py)
     std: dict[str, float] = {}
     shape_std: dict[str, float] = {}
     corr = 0.0
+    cov: np.ndarray | None = None
+    kappa = correlation_factors(prob, views, sol.fun)
     try:
-        cov = np.linalg.pinv(sol.normal_matrix) * s2
+        _, Jg, Jv = prob.evaluate(sol.x, intr0)
+        var = row_variances(prob, views, sol.fun, sol.weights, len(sol.x))
+        cov = sandwich_covariance(prob, sol.normal_matrix, sol.fun, Jg, Jv, sol.weights, var)
         for k, idx in enumerate(prob.free):
             std[names[idx]] = float(np.sqrt(max(cov[k, k], 0.0)))
         for k, idx in enumerate(prob.shape_idx):
@@ -589,4 +626,4 @@ def refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[n
     return RefineResult(K, D, [p.copy() for p in poses], offsets, std, view_rms, corner_rms,
                         float(np.sqrt(np.mean(er * er))), per_view, float(sol.cost), int(sol.nfev),
                         bool(sol.success), str(sol.message), dict(zip(SHAPE_NAMES, map(float, shape_v), strict=True)),
-                        shape_std, lens.name, float(corr))
+                        shape_std, lens.name, float(corr), sol.x, prob, intr0, cov, kappa)

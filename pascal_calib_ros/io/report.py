@@ -63,9 +63,22 @@ def report_numbers(res: CalibrationResult, dets: list[Detection]) -> dict[str, A
                      "view_hulls": [np.round(h, 2).tolist() for h in view_hulls(res.edge_points)]},
         "distortion_field": {"over": f"observed field + {FIELD_MARGIN:.0f} px", "max_px": float(mag.max()),
                              "mean_px": float(mag.mean())},
+        "uncertainty": {"projection": res.projection_summary(),
+                        "projection_over": "observed field, worst-direction sigma (mrcal's projection uncertainty)",
+                        "std_model": "sandwich covariance, per-view noise, correlated edge residuals"},
         "target_shape": {"estimated": {n: res.shape[n] for n in res.shape_std}, "std": res.shape_std,
                          "change_against_flat_sheet": res.shape_effect} if res.shape else None,
     }
+
+
+def _wrapped(warnings: list[str], width: int = 70) -> list[str]:
+    """Every warning in full, wrapped to ``width`` characters."""
+    import textwrap
+
+    out = ["warnings:" if warnings else "no warnings"]
+    for x in warnings:
+        out += [*textwrap.wrap(x, width, initial_indent="- ", subsequent_indent="  "), ""]
+    return out
 
 
 def write_report(res: CalibrationResult, dets: list[Detection], out_dir: str | Path) -> tuple[Path, Path]:
@@ -80,7 +93,7 @@ def write_report(res: CalibrationResult, dets: list[Detection], out_dir: str | P
     numbers = report_numbers(res, dets)
     (out / "report.json").write_text(json.dumps(numbers, indent=1, default=float))
 
-    fig, ax = plt.subplots(2, 2, figsize=(14, 11))
+    fig, ax = plt.subplots(2, 3, figsize=(20, 11))
     w, h = res.width, res.height
     # residuals
     a = ax[0][0]
@@ -119,8 +132,24 @@ def write_report(res: CalibrationResult, dets: list[Detection], out_dir: str | P
         axx.set_xlim(0, w)
         axx.set_ylim(h, 0)
         axx.set_aspect("equal")
+    # projection uncertainty, observed field dashed
+    e = ax[1][1]
+    pu = res.projection
+    if pu is not None:
+        im = e.imshow(pu.sigma.reshape(pu.grid_shape), extent=(0, w, h, 0), cmap="magma",
+                      vmax=float(np.nanpercentile(pu.sigma, 95)) if np.isfinite(pu.sigma).any() else None)
+        fig.colorbar(im, ax=e, label="projection sigma (px)")
+        if field.any():
+            e.contour(field.astype(float), levels=[0.5], colors="c", linewidths=1.0, linestyles="--")
+        e.set_title(f"{res.projection_line()}".replace(" in the observed", "\nin the observed"), fontsize=10)
+    else:
+        e.set_title("projection uncertainty: not available")
+    e.set_xlim(0, w)
+    e.set_ylim(h, 0)
+    e.set_aspect("equal")
+    ax[0][2].axis("off")
     # parameters
-    d_ax = ax[1][1]
+    d_ax = ax[1][2]
     d_ax.axis("off")
     names = ["fx", "fy", "cx", "cy", *res.camera().lens.coefficients]
     vals = [res.K[0, 0], res.K[1, 1], res.K[0, 2], res.K[1, 2], *res.D]
@@ -131,8 +160,8 @@ def write_report(res: CalibrationResult, dets: list[Detection], out_dir: str | P
         lines += ["target shape: " + ", ".join(f"{n} {res.shape[n]:+.2e}" for n in res.shape_std)]
     lines += [""] + [f"{v.name}: {f'used, rms {v.rms:.3f} px' if v.used else 'rejected: ' + v.reason}"[:70]
                      for v in res.views[:18]]
-    lines += [f"warning: {x}"[:80] for x in res.warnings]
     d_ax.text(0, 1, "\n".join(lines), va="top", family="monospace", fontsize=9)
+    ax[0][2].text(0, 1, "\n".join(_wrapped(res.warnings)), va="top", fontsize=9)
     fig.tight_layout()
     fig.savefig(out / "report.png", dpi=80)
     plt.close(fig)
