@@ -1,0 +1,86 @@
+"""Honest uncertainties: correlation factors of residual sequences, the sandwich covariance, and
+mrcal's projection uncertainty checked against cases whose answer is known in closed form."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from pascal_calib_ros.calibrate import pipeline
+from pascal_calib_ros.calibrate.pipeline import calibrate
+from pascal_calib_ros.calibrate.uncertainty import lag_factor
+from pascal_calib_ros.detect.detection import Detection
+from pascal_calib_ros.geometry.camera import Camera
+from pascal_calib_ros.targets import Target
+
+
+def test_lag_factor_of_white_and_correlated_sequences() -> None:
+    rng = np.random.default_rng(1)
+    white = [rng.normal(size=500) for _ in range(40)]
+    assert lag_factor(white, circular=True) == pytest.approx(1.0, abs=0.1)
+    # moving average of two neighbours: rho_1 = 1/2, the rest 0 -> kappa = 2
+    ma = []
+    for _ in range(40):
+        e = rng.normal(size=501)
+        ma.append(e[:-1] + e[1:])
+    assert lag_factor(ma, circular=False) == pytest.approx(2.0, abs=0.15)
+    # three neighbours: rho_1 = 2/3, rho_2 = 1/3 -> kappa = 3
+    ma3 = []
+    for _ in range(40):
+        e = rng.normal(size=502)
+        ma3.append(e[:-2] + e[1:-1] + e[2:])
+    assert lag_factor(ma3, circular=False) == pytest.approx(3.0, abs=0.25)
+
+
+@pytest.fixture(scope="module")
+def ring_result(ring_target: Target, ring_session: tuple[Camera, list[np.ndarray], list[Detection]]):
+    _, _, dets = ring_session
+    return calibrate(dets, ring_target)
+
+
+def test_sigmas_come_from_the_sandwich_covariance(ring_result) -> None:
+    res = ring_result
+    assert res.projection is not None
+    assert res.projection.distance > 0.1  # the median target distance
+    assert all(res.std[k] > 0 for k in ("fx", "fy", "cx", "cy"))
+    s = res.projection_summary()
+    assert s is not None and 0 < s["median_px"] <= s["worst_px"] < 1.0
+    assert "projection sigma" in res.projection_line() and "observed field" in res.projection_line()
+
+
+def test_projection_uncertainty_of_known_covariances(ring_target: Target, ring_session,
+                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """A covariance on cx alone moves every pixel by the same amount (sigma = std(cx)); one on fx
+    alone moves a pixel by (u - cx) / fx std(fx), nothing at the principal point; none: zero."""
+    _, _, dets = ring_session
+    captured = {}
+    original = pipeline.refine
+
+    def spy(*a, **k):  # records the refinement behind the calibration (the last one)
+        captured["r"] = original(*a, **k)
+        return captured["r"]
+
+    monkeypatch.setattr(pipeline, "refine", spy)
+    calibrate(dets, ring_target)
+    r = captured["r"]
+    n = len(r.x)
+    free = r.problem.free
+    for name, idx in (("cx", 2), ("fx", 0)):
+        cov = np.zeros((n, n))
+        k = free.index(idx)
+        cov[k, k] = 0.04  # std 0.2
+        pu = replace(r, covariance=cov).projection_uncertainty(800, 600, 0.5)
+        ok = np.isfinite(pu.sigma)
+        assert ok.mean() > 0.9
+        if name == "cx":
+            np.testing.assert_allclose(pu.sigma[ok], 0.2, rtol=1e-3)
+        else:
+            K = r.K
+            expect = 0.2 * np.abs(pu.pixels[ok, 0] - K[0, 2]) / K[0, 0]
+            # distortion makes x/z differ a little from (u - cx) / fx away from the centre
+            near = np.hypot(pu.pixels[ok, 0] - K[0, 2], pu.pixels[ok, 1] - K[1, 2]) < 150
+            np.testing.assert_allclose(pu.sigma[ok][near], expect[near], atol=2e-3)
+    zero = replace(r, covariance=np.zeros((n, n))).projection_uncertainty(800, 600, 0.5)
+    assert np.nanmax(zero.sigma) == 0.0
