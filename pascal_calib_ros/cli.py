@@ -145,6 +145,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         return EXIT_CALIB
     t_cal = time.perf_counter() - t1
     print(format_summary(res))
+    print(res.projection_line())
     print(f"time: detection {t_detect:.2f} s ({len(paths)} images), calibration {t_cal:.2f} s")
     info = CameraInfoData(res.width, res.height, args.camera_name, res.K, res.D, res.model,
                           P=rectified_projection(res.camera()))
@@ -155,6 +156,18 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 
         png, js = write_report(res, dets, args.report)
         print(f"wrote {png} and {js}")
+    if args.cross_validate:
+        # two interleaved halves against their projection uncertainty (calibrate/cross_validation.py); a
+        # disagreement or a refusal is a WARNING, not a failure: the calibration is written either way
+        from .calibrate.cross_validation import cross_validate
+
+        try:
+            cv = cross_validate(dets, target, opts)
+        except CalibrationError as e:
+            print(f"WARNING: cross-validation not possible: {e}")
+        else:
+            print(cv.summary_line())
+            print(("" if cv.agree else "WARNING: ") + cv.message)
     return EXIT_OK
 
 
@@ -377,6 +390,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also estimate the printed sheet's shape (grids, checkerboards): warp (parabolic "
                         "out-of-plane bend; the default), pitch (y/x scale ratio) or all")
     c.add_argument("--report", metavar="DIR", help="write report.png and report.json into DIR")
+    c.add_argument("--cross-validate", action="store_true",
+                   help="also calibrate two interleaved halves of the views and compare them against their "
+                        "projection uncertainty (a model error shows as a larger difference; needs 2 x --min-views "
+                        "usable views)")
     c.add_argument("images", nargs="+", help="image files or folders")
     c.set_defaults(func=cmd_calibrate)
 

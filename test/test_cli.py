@@ -58,6 +58,21 @@ def test_too_few_views_exit_nonzero_and_write_nothing(session_dir: Path, tmp_pat
     assert not out.exists()
 
 
+def test_cross_validate_prints_the_halves_and_a_verdict(session_dir: Path, tmp_path: Path) -> None:
+    r = run("calibrate", "--target", "ring_a4", "--cross-validate", "-o", str(tmp_path / "cam.yaml"), str(session_dir))
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "projection sigma " in r.stdout and " px median" in r.stdout
+    lines = r.stdout.splitlines()
+    i = next(k for k, ln in enumerate(lines) if ln.startswith("cross-validation: 4 against 4 views"))
+    assert "at infinity" in lines[i] and "projection difference: rms" in lines[i]
+    assert lines[i + 1].startswith("the two halves agree: they differ by "), lines[i + 1]
+    # too few views for two halves: said, but the calibration stands (exit 0, YAML written)
+    r = run("calibrate", "--target", "ring_a4", "--cross-validate", "--min-views", "5", "-o", str(tmp_path / "b.yaml"),
+            str(session_dir))
+    assert r.returncode == 0 and (tmp_path / "b.yaml").exists(), r.stdout + r.stderr
+    assert "WARNING: cross-validation not possible: 8 usable view(s); cross-validation needs 10" in r.stdout
+
+
 def test_bad_target_and_missing_images(session_dir: Path, tmp_path: Path) -> None:
     bad = tmp_path / "t.yaml"
     bad.write_text("name: x\nsheet: {width: 0.2, height: 0.2}\nfeatures: [{type: ring, center: [0.1, 0.1], "

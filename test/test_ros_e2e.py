@@ -123,7 +123,7 @@ def test_folder_session_calibrate_commit_reset(tmp_path: Path, session: Path) ->
 
     dom = next_domain_id()
     params = {"min_views": 6, "output_dir": str(tmp_path / "out"), "camera_name": "e2e_cam",
-              "set_camera_info_service": "/camera/set_camera_info"}
+              "set_camera_info_service": "/camera/set_camera_info", "cross_validate": True}
     cal = NodeProcess("calibration_node", params, dom, tmp_path / "cal.log")
     client = RosClient(dom)
     rep = None
@@ -143,6 +143,9 @@ def test_folder_session_calibrate_commit_reset(tmp_path: Path, session: Path) ->
         r = client.call_trigger("/pascal_calib/calibrate")
         assert r.success, r.message
         assert "fx=" in r.message and "rms=" in r.message and "views=" in r.message
+        assert "projection sigma" in r.message
+        # at most 10 views for two halves of min_views 6: said in the answer, the calibration stands
+        assert "cross-validation not possible" in r.message and "needs 12" in r.message, r.message
         assert client.spin_until(lambda: bool(info), 10)
         _check_k(info[-1].k, _truth(session))
         doc = yaml.safe_load((tmp_path / "out" / "e2e_cam.yaml").read_text())

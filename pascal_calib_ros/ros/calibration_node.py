@@ -53,6 +53,7 @@ from ..calibrate.arm_session import (
     stored_message,
 )
 from ..calibrate.collector import ViewCollector
+from ..calibrate.cross_validation import cross_validate
 from ..calibrate.pipeline import METHODS, CalibrationError, CalibrationOptions, CalibrationResult, calibrate
 from ..calibrate.refine import DISTORTION_MODELS, SHAPE_CHOICES
 from ..detect.detection import Detection, DetectionParams
@@ -98,6 +99,8 @@ PARAMS = (
     Param("target_shape", "", "also estimate the printed sheet's shape (grid and checkerboard targets): "
           "warp (out-of-plane bend), pitch (y/x scale ratio), all; empty: nominal flat sheet",
           choices=tuple(SHAPE_CHOICES)),
+    Param("cross_validate", False, "~/calibrate also calibrates two interleaved halves of the views and compares "
+          "them against their projection uncertainty (needs 2 x min_views views; not with hand_eye)"),
     Param("auto_calibrate", False, "calibrate as soon as the coverage is complete"),
     Param("qos", "auto", "image subscription reliability: auto (match the publisher) | reliable | best_effort",
           choices=("auto", "reliable", "best_effort")),
@@ -544,9 +547,19 @@ class CalibrationNode(Node):
             with self.lock:
                 self.result, self.result_msg = res, msg
             self.pub_info.publish(msg)
-            summary = f"{res.summary_line()} time={dt:.2f}s yaml={path}"
+            summary = f"{res.summary_line()} time={dt:.2f}s yaml={path}; {res.projection_line()}"
             if res.warnings:
                 summary += " warnings: " + "; ".join(res.warnings)
+            if self.p("cross_validate"):  # a refusal or a disagreement is reported, the calibration stands
+                try:
+                    cv = cross_validate(views, target, opts)
+                    line = f"{cv.summary_line()}; {'' if cv.agree else 'WARNING: '}{cv.message}"
+                except CalibrationError as e:
+                    cv, line = None, f"cross-validation not possible: {e}"
+                except Exception as e:  # never let a numerical failure take the node down
+                    cv, line = None, f"cross-validation failed: {type(e).__name__}: {e}"
+                (self.get_logger().info if cv is not None and cv.agree else self.get_logger().warn)(line)
+                summary += f"; {line}"
             self.get_logger().info(f"calibrated: {summary}")
             self.publish_status()
             return True, summary
@@ -620,7 +633,7 @@ class CalibrationNode(Node):
             self.hand_eye_line = line
         self.pub_info.publish(info)
         self.pub_hand_eye.publish(tf)
-        summary = f"{line}; camera: {res.summary_line()} time={dt:.2f}s yaml={path}"
+        summary = f"{line}; camera: {res.summary_line()} time={dt:.2f}s yaml={path}; {res.projection_line()}"
         warnings = list(dict.fromkeys([*res.warnings, *he.warnings]))
         if warnings:
             summary += " warnings: " + "; ".join(warnings)

@@ -1,0 +1,207 @@
+"""Cross-validation of a calibration: two independent halves of the views, compared.
+
+After mrcal's "tour of mrcal: cross-validation" (http://mrcal.secretsauce.net/tour-cross-validation.html)
+and its differencing (http://mrcal.secretsauce.net/differencing.html). The projection uncertainty
+(:mod:`.uncertainty`) only says how much the calibration moves with the noise of the observed
+edges; it says nothing about *model errors* (a lens model too simple for the lens, a sheet that
+is not flat, a camera or focus that changed between views), which bias the result without
+widening its error bars. Two calibrations from disjoint views sample both: if the model holds,
+they differ only by their noise, as much as their uncertainties predict; if it does not, each
+half fits the model error of its own views differently and they differ by more.
+
+1. The usable views (a target detected) are split into two interleaved halves, A = views 0, 2,
+   4, ... and B = views 1, 3, 5, ... among them (interleaved so that a slow drift of the session,
+   or the order in which a user swept the image, is shared by both halves), and each half is
+   calibrated with the same options.
+2. Their projection difference (:func:`.compare.projection_difference`, mrcal's
+   ``projection_diff``: B against A after the implied transformation between the two camera
+   frames) is taken over the intersection of the halves' observed fields (the union if they do
+   not overlap), where both models are known.
+3. For independent estimates, the difference of two projections of one point has the covariance
+   Sigma_A + Sigma_B, so its expected size at a grid point is sqrt(sigma_A^2 + sigma_B^2) with
+   sigma_A, sigma_B the halves' worst-direction projection sigmas there (their
+   :class:`~.uncertainty.ProjectionUncertainty` maps, nearest grid point). The expected RMS is the
+   RMS of that over the same points as the observed difference; the verdict is the ratio
+   observed / expected (:data:`AGREE_RATIO`).
+
+Range: the difference is taken at infinity (rays; the fit is a rotation only), as mrcal's
+``projection_diff`` does by default. Not at a finite range r: with every grid point at the same
+r, project(R r v + t) = project(R v + t / r), so the fitted translation acts at any finite r like
+a change of scale along the axis and absorbs most of a focal-length difference, the largest part
+of what two halves disagree on (on 12 rendered views of ring_a4, 640x480, four seeds: the halves
+differ by 0.021-0.036 px rms at infinity but by 0.004-0.008 px at any finite range, against an
+expected 0.018-0.021 px, and each half differs from the truth by 0.004-0.044 px at infinity).
+The halves' projection uncertainties, though, are the pipeline's: for points at each half's median
+target distance (:attr:`CrossValidation.distances`); a :class:`~.pipeline.CalibrationResult` does
+not keep what it would take to recompute them at infinity. Neither range matches the difference
+exactly: at infinity the sigma also holds the uncertainty of the camera frame's orientation, which
+the difference's fitted rotation removes (computed at 10 km on the same sessions, the expected
+figure is 4-6x larger, ratios 0.16-0.49), while at the median distance it profits from the
+coupling of focal length and target distance, which a ray at infinity does not have (so the
+expected figure is somewhat low; :data:`AGREE_RATIO`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..detect.detection import Detection
+from ..targets import Target
+from .compare import CompareError, ProjectionDiff, projection_difference
+from .diagnostics import observed_field_mask
+from .pipeline import CalibrationError, CalibrationOptions, CalibrationResult, calibrate
+from .uncertainty import ProjectionUncertainty
+
+# The halves agree when their difference is at most this many times what their uncertainties
+# predict. Not 1: the predicted figure is rough, and low rather than high. sigma is the worst
+# direction's standard deviation, and a 2-D difference with round error ellipses has an RMS up to
+# sqrt(2) times that; the sigmas are for the median target distance, not infinity (module
+# docstring); the difference is dominated by a few parameters (focal length, k1), so its RMS
+# scatters like a chi with few degrees of freedom. Measured on 640x480 renders (ring_a4 and
+# ring_grid_a4, 12-20 views, plumb_bob lenses with k1 0 to -0.3, plumb_bob fits, 30 sessions):
+# ratios 0.18-3.95, median 1.8, 4 of 30 above 3 (a false alarm rate of about 1 in 8). Model
+# errors: no distortion fitted to k1 = -0.1, 9.9-51x; a sheet bent by 3 mm fitted flat, 11-33x;
+# k1 k2 fitted to a lens with p1, p2 of 0.003, -0.002, 2.7-6.2x; the ten real CMU disc photos
+# (README) fitted flat 4.8x, with --target-shape 2.0x. Not caught: plumb_bob fitted to a wide
+# rational lens (ring grid, edge RMS 0.17 px against 0.02 px), 1.8x: both halves see the same
+# misfit, and its residuals widen the (sandwich) uncertainty they are compared with.
+AGREE_RATIO = 3.0
+
+
+@dataclass(frozen=True)
+class CrossValidation:
+    """Two calibrations of disjoint halves of the usable views and how much they differ.
+
+    ``halves``: the calibrations of A and B; ``views``: the view names of each half;
+    ``diff``: B against A (:class:`~.compare.ProjectionDiff`) at infinity;
+    ``expected``: sqrt(sigma_A^2 + sigma_B^2) per point of ``diff.pixels`` (px);
+    ``region``: where the difference was taken; ``distances``: the range of each half's
+    projection uncertainty (m; module docstring); ``hints``: what to try if they disagree.
+    """
+
+    halves: tuple[CalibrationResult, CalibrationResult]
+    views: tuple[list[str], list[str]]
+    diff: ProjectionDiff
+    expected: np.ndarray
+    region: str
+    distances: tuple[float, float]
+    hints: tuple[str, ...] = ()
+
+    @property
+    def observed_rms(self) -> float:
+        return self.diff.rms
+
+    @property
+    def expected_rms(self) -> float:
+        """RMS of sqrt(sigma_A^2 + sigma_B^2) over the points of the difference (px)."""
+        e = self.expected[np.isfinite(self.expected)]
+        return float(np.sqrt(np.mean(e ** 2))) if len(e) else float("nan")
+
+    @property
+    def ratio(self) -> float:
+        """Observed RMS difference / expected RMS (NaN if the uncertainty is unknown)."""
+        exp = self.expected_rms
+        if not np.isfinite(exp):
+            return float("nan")
+        return self.observed_rms / exp if exp > 0 else float("inf")
+
+    @property
+    def agree(self) -> bool:
+        return bool(np.isfinite(self.ratio) and self.ratio <= AGREE_RATIO)
+
+    def summary_line(self) -> str:
+        """One line: the halves, where and at what range they were compared, the difference."""
+        a, b = self.halves
+        return (f"cross-validation: {a.n_used} against {b.n_used} views (interleaved halves), {self.region}, "
+                f"at infinity (rays): {self.diff.summary()}")
+
+    @property
+    def message(self) -> str:
+        """The verdict in words (a user's next step if the halves disagree)."""
+        obs, exp, ratio = self.observed_rms, self.expected_rms, self.ratio
+        if not np.isfinite(ratio):
+            return (f"the two halves differ by {obs:.3f} px rms; their uncertainty is not known, so this cannot be "
+                    "judged")
+        if self.agree:
+            return (f"the two halves agree: they differ by {obs:.3f} px rms, as their uncertainty predicts "
+                    f"({exp:.3f} px)")
+        times = f"{ratio:.1f}x" if ratio < 10 else f"{ratio:.0f}x"
+        causes = ", ".join(self.hints[:-1]) + (", or " if len(self.hints) > 1 else "") + self.hints[-1]
+        return (f"the two halves differ by {obs:.3f} px rms, {times} more than their uncertainty predicts "
+                f"({exp:.3f} px): {causes}")
+
+
+def interleaved_halves(dets: list[Detection]) -> tuple[list[int], list[int]]:
+    """Indices of the usable detections at even and at odd positions among them."""
+    usable = [k for k, d in enumerate(dets) if d.ok]
+    return usable[0::2], usable[1::2]
+
+
+def sigma_at(unc: ProjectionUncertainty, pixels: np.ndarray) -> np.ndarray:
+    """The projection sigma of the nearest finite grid point of ``unc`` at each pixel (N,)."""
+    ok = np.isfinite(unc.sigma)
+    if not ok.any():
+        return np.full(len(pixels), np.nan)
+    _, i = cKDTree(unc.pixels[ok]).query(pixels)
+    return np.asarray(unc.sigma[ok][i])
+
+
+# the next richer model to try when the halves disagree (none for the richest ones)
+RICHER_MODEL = {"none": "plumb_bob", "radial": "plumb_bob", "plumb_bob_k3_fixed": "plumb_bob",
+                "plumb_bob": "rational_polynomial"}
+
+
+def _hints(opt: CalibrationOptions, target: Target) -> tuple[str, ...]:
+    """What may cause a disagreement, with what to try for the ones the options leave open."""
+    richer = RICHER_MODEL.get(opt.distortion)
+    hints = [f"the lens model ({opt.distortion}) may be too simple for this lens (try --distortion {richer}; "
+             "node: distortion_model)" if richer else f"the lens model ({opt.distortion}) may not describe this lens"]
+    if not opt.target_shape and (target.grids or target.checkerboards):
+        hints.append("the target may not be flat (try --target-shape; node: target_shape)")
+    else:
+        hints.append("the target may not be flat or its print not true to scale")
+    hints.append("the camera (focus, zoom) may have changed during the session")
+    return tuple(hints)
+
+
+def cross_validate(dets: list[Detection], target: Target, options: CalibrationOptions) -> CrossValidation:
+    """Calibrate two interleaved halves of the usable views and compare them (module docstring).
+
+    Raises :class:`~.pipeline.CalibrationError` if there are fewer than 2 x ``min_views`` usable
+    views, if a half cannot be calibrated, or if the options give no projection uncertainty
+    (``zhang`` or no refinement)."""
+    if (options.method or target.default_method()) == "zhang" or not options.refine:
+        raise CalibrationError("cross-validation compares the halves against their projection uncertainty, which "
+                               "needs the refinement of the circle methods (not zhang, not --no-refine)")
+    idx_a, idx_b = interleaved_halves(dets)
+    n = len(idx_a) + len(idx_b)
+    if n < 2 * options.min_views:
+        raise CalibrationError(f"{n} usable view(s); cross-validation needs {2 * options.min_views} (two halves of "
+                               f"min_views = {options.min_views})")
+    halves = []
+    for label, idx in (("A", idx_a), ("B", idx_b)):
+        try:
+            halves.append(calibrate([dets[k] for k in idx], target, options))
+        except CalibrationError as e:
+            raise CalibrationError(f"half {label} ({len(idx)} views) cannot be calibrated: {e}") from None
+    res_a, res_b = halves
+    if res_a.projection is None or res_b.projection is None:
+        raise CalibrationError("a half has no projection uncertainty (no parameter covariance); cannot judge the "
+                               "difference")
+    w, h = res_a.width, res_a.height
+    mask_a = observed_field_mask(res_a.edge_points, w, h)
+    mask_b = observed_field_mask(res_b.edge_points, w, h)
+    mask, region = mask_a & mask_b, "common observed field"
+    if not mask.any():
+        mask, region = mask_a | mask_b, "union of the observed fields (they do not overlap)"
+    try:
+        diff = projection_difference(res_a.camera(), res_b.camera(), mask, None)
+    except CompareError as e:
+        raise CalibrationError(f"the halves cannot be compared: {e}") from None
+    expected = np.hypot(sigma_at(res_a.projection, diff.pixels), sigma_at(res_b.projection, diff.pixels))
+    return CrossValidation((res_a, res_b), ([v.name for v in res_a.views], [v.name for v in res_b.views]), diff,
+                           expected, region, (res_a.projection.distance, res_b.projection.distance),
+                           _hints(options, target))
