@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from pascal_calib_ros.calibrate import pipeline
+from pascal_calib_ros.calibrate.compare import projection_difference
 from pascal_calib_ros.calibrate.pipeline import calibrate
-from pascal_calib_ros.calibrate.uncertainty import lag_factor
+from pascal_calib_ros.calibrate.uncertainty import lag_factor, rotation_displacements, rotation_free_difference_variance
 from pascal_calib_ros.detect.detection import Detection
 from pascal_calib_ros.geometry.camera import Camera
 from pascal_calib_ros.targets import Target
@@ -84,3 +85,39 @@ def test_projection_uncertainty_of_known_covariances(ring_target: Target, ring_s
             np.testing.assert_allclose(pu.sigma[ok][near], expect[near], atol=2e-3)
     zero = replace(r, covariance=np.zeros((n, n))).projection_uncertainty(800, 600, 0.5)
     assert np.nanmax(zero.sigma) == 0.0
+
+
+def test_rotation_free_difference_removes_what_a_rotation_absorbs(ring_target: Target, ring_session,
+                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """At infinity a principal-point error is nearly a rotation of the camera (the difference's
+    fitted rotation removes most of it); a focal-length error is not (it stays)."""
+    _, _, dets = ring_session
+    captured = {}
+    original = pipeline.refine
+
+    def spy(*a, **k):
+        captured["r"] = original(*a, **k)
+        return captured["r"]
+
+    monkeypatch.setattr(pipeline, "refine", spy)
+    res = calibrate(dets, ring_target)
+    r = captured["r"]
+    cam = res.camera()
+    us, vs = np.meshgrid(np.arange(40, 800, 40.0), np.arange(30, 600, 40.0))
+    rays = cam.unproject(np.stack([us.ravel(), vs.ravel()], 1))
+    H = rotation_displacements(cam, rays)
+    n = len(r.x)
+    for idx, most_removed in ((2, True), (0, False)):
+        cov = np.zeros((n, n))
+        k = r.problem.free.index(idx)
+        cov[k, k] = 0.04  # std 0.2 px
+        var = rotation_free_difference_variance(r.camera_of, r.view_poses_of, r.x, cov, rays, H)
+        rms = float(np.sqrt(np.mean(var)))
+        if most_removed:  # what the diff of a camera with cx moved by 0.2 px leaves, directly
+            K2 = cam.K.copy()
+            K2[0, 2] += 0.2
+            direct = projection_difference(cam, Camera(K2, cam.D, cam.width, cam.height, cam.model), step=40.0)
+            assert rms < 0.1 * 0.2 and rms == pytest.approx(direct.rms, rel=0.1), (rms, direct.rms)
+        else:
+            plain = 0.2 * np.sqrt(np.mean(((us.ravel() - cam.K[0, 2]) / cam.K[0, 0]) ** 2))
+            assert 0.5 * plain < rms <= 1.05 * plain, (rms, plain)

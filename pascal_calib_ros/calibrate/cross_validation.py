@@ -17,28 +17,20 @@ half fits the model error of its own views differently and they differ by more.
    ``projection_diff``: B against A after the implied transformation between the two camera
    frames) is taken over the intersection of the halves' observed fields (the union if they do
    not overlap), where both models are known.
-3. For independent estimates, the difference of two projections of one point has the covariance
-   Sigma_A + Sigma_B, so its expected size at a grid point is sqrt(sigma_A^2 + sigma_B^2) with
-   sigma_A, sigma_B the halves' worst-direction projection sigmas there (their
-   :class:`~.uncertainty.ProjectionUncertainty` maps, nearest grid point). The expected RMS is the
-   RMS of that over the same points as the observed difference; the verdict is the ratio
-   observed / expected (:data:`AGREE_RATIO`).
+3. What the difference should be if only noise separates the halves: each half's parameter
+   covariance (the refinement's sandwich covariance, :mod:`.uncertainty`) is propagated to the
+   projection of every grid ray at infinity (carried through the views' frames as mrcal does), and
+   the part a rotation can absorb is removed, since the difference fits one
+   (:func:`~.uncertainty.rotation_free_difference_variance`). The expected RMS is the RMS over the
+   same points of sqrt(E|d_A|^2 + E|d_B|^2); the verdict is the ratio observed / expected
+   (:data:`AGREE_RATIO`).
 
 Range: the difference is taken at infinity (rays; the fit is a rotation only), as mrcal's
 ``projection_diff`` does by default. Not at a finite range r: with every grid point at the same
-r, project(R r v + t) = project(R v + t / r), so the fitted translation acts at any finite r like
-a change of scale along the axis and absorbs most of a focal-length difference, the largest part
-of what two halves disagree on (on 12 rendered views of ring_a4, 640x480, four seeds: the halves
-differ by 0.021-0.036 px rms at infinity but by 0.004-0.008 px at any finite range, against an
-expected 0.018-0.021 px, and each half differs from the truth by 0.004-0.044 px at infinity).
-The halves' projection uncertainties, though, are the pipeline's: for points at each half's median
-target distance (:attr:`CrossValidation.distances`); a :class:`~.pipeline.CalibrationResult` does
-not keep what it would take to recompute them at infinity. Neither range matches the difference
-exactly: at infinity the sigma also holds the uncertainty of the camera frame's orientation, which
-the difference's fitted rotation removes (computed at 10 km on the same sessions, the expected
-figure is 4-6x larger, ratios 0.16-0.49), while at the median distance it profits from the
-coupling of focal length and target distance, which a ray at infinity does not have (so the
-expected figure is somewhat low; :data:`AGREE_RATIO`).
+r, project(R r v + t) = project(R v + t / r), so a fitted translation acts at any finite r like a
+change of scale along the axis and absorbs most of a focal-length difference, the largest part of
+what two halves disagree on. The prediction is made for the same rays and the same fitted
+rotation, so observed and expected measure the same thing.
 """
 
 from __future__ import annotations
@@ -46,28 +38,22 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from ..detect.detection import Detection
 from ..targets import Target
 from .compare import CompareError, ProjectionDiff, projection_difference
 from .diagnostics import observed_field_mask
 from .pipeline import CalibrationError, CalibrationOptions, CalibrationResult, calibrate
-from .uncertainty import ProjectionUncertainty
+from .uncertainty import rotation_displacements, rotation_free_difference_variance
 
 # The halves agree when their difference is at most this many times what their uncertainties
-# predict. Not 1: the predicted figure is rough, and low rather than high. sigma is the worst
-# direction's standard deviation, and a 2-D difference with round error ellipses has an RMS up to
-# sqrt(2) times that; the sigmas are for the median target distance, not infinity (module
-# docstring); the difference is dominated by a few parameters (focal length, k1), so its RMS
-# scatters like a chi with few degrees of freedom. Measured on 640x480 renders (ring_a4 and
-# ring_grid_a4, 12-20 views, plumb_bob lenses with k1 0 to -0.3, plumb_bob fits, 30 sessions):
-# ratios 0.18-3.95, median 1.8, 4 of 30 above 3 (a false alarm rate of about 1 in 8). Model
-# errors: no distortion fitted to k1 = -0.1, 9.9-51x; a sheet bent by 3 mm fitted flat, 11-33x;
-# k1 k2 fitted to a lens with p1, p2 of 0.003, -0.002, 2.7-6.2x; the ten real CMU disc photos
-# (README) fitted flat 4.8x, with --target-shape 2.0x. Not caught: plumb_bob fitted to a wide
-# rational lens (ring grid, edge RMS 0.17 px against 0.02 px), 1.8x: both halves see the same
-# misfit, and its residuals widen the (sandwich) uncertainty they are compared with.
+# predict. The difference is dominated by a few parameters (focal length, k1), so its squared RMS
+# scatters like a chi-square with few degrees of freedom around the prediction. Measured on 640x480
+# renders (16 views, plumb_bob lenses with k1 0 to -0.3, plumb_bob fits, 8 sessions each): ring_a4
+# ratios 0.35-3.2, median 1.1; ring_grid_a4 0.11-0.89 (its sigmas are conservative: README, Trust).
+# Model errors: a bent sheet (3 mm) fitted flat, ring grid, 9.9-16x; k1 k2 fitted to a lens with
+# p1, p2 of 0.003, -0.002, 3.0-8.1x; no distortion fitted to k1 = -0.1, 2.2-5.8x (a gross misfit
+# also widens the halves' own uncertainty, and shows in the edge RMS first).
 AGREE_RATIO = 3.0
 
 
@@ -77,9 +63,9 @@ class CrossValidation:
 
     ``halves``: the calibrations of A and B; ``views``: the view names of each half;
     ``diff``: B against A (:class:`~.compare.ProjectionDiff`) at infinity;
-    ``expected``: sqrt(sigma_A^2 + sigma_B^2) per point of ``diff.pixels`` (px);
+    ``expected``: sqrt(E|d_A|^2 + E|d_B|^2) per point of ``diff.pixels`` (px; module docstring);
     ``region``: where the difference was taken; ``distances``: the range of each half's
-    projection uncertainty (m; module docstring); ``hints``: what to try if they disagree.
+    projection-uncertainty map (m); ``hints``: what to try if they disagree.
     """
 
     halves: tuple[CalibrationResult, CalibrationResult]
@@ -96,7 +82,7 @@ class CrossValidation:
 
     @property
     def expected_rms(self) -> float:
-        """RMS of sqrt(sigma_A^2 + sigma_B^2) over the points of the difference (px)."""
+        """RMS of the expected difference over its points (px)."""
         e = self.expected[np.isfinite(self.expected)]
         return float(np.sqrt(np.mean(e ** 2))) if len(e) else float("nan")
 
@@ -140,13 +126,24 @@ def interleaved_halves(dets: list[Detection]) -> tuple[list[int], list[int]]:
     return usable[0::2], usable[1::2]
 
 
-def sigma_at(unc: ProjectionUncertainty, pixels: np.ndarray) -> np.ndarray:
-    """The projection sigma of the nearest finite grid point of ``unc`` at each pixel (N,)."""
-    ok = np.isfinite(unc.sigma)
-    if not ok.any():
-        return np.full(len(pixels), np.nan)
-    _, i = cKDTree(unc.pixels[ok]).query(pixels)
-    return np.asarray(unc.sigma[ok][i])
+def expected_difference(res_a: CalibrationResult, res_b: CalibrationResult, pixels: np.ndarray) -> np.ndarray:
+    """sqrt(E|d_A|^2 + E|d_B|^2) per pixel (N,): the two halves' noise shares of their projection
+    difference at infinity after the fitted rotation
+    (:func:`~.uncertainty.rotation_free_difference_variance`; rays of A's camera for both)."""
+    cam_a = res_a.camera()
+    rays = cam_a.unproject(pixels)
+    ok = np.all(np.isfinite(rays), 1)
+    out = np.full(len(pixels), np.nan)
+    H = rotation_displacements(cam_a, rays[ok])
+    var = np.zeros(int(ok.sum()))
+    for res in (res_a, res_b):
+        ref = res.refinement
+        if ref is None or ref.covariance is None or ref.x is None:
+            raise CalibrationError("a half has no parameter covariance; cannot judge the difference")
+        var += rotation_free_difference_variance(ref.camera_of, ref.view_poses_of, ref.x, ref.covariance,
+                                                 rays[ok], H)
+    out[ok] = np.sqrt(np.maximum(var, 0.0))
+    return out
 
 
 # the next richer model to try when the halves disagree (none for the richest ones)
@@ -201,7 +198,7 @@ def cross_validate(dets: list[Detection], target: Target, options: CalibrationOp
         diff = projection_difference(res_a.camera(), res_b.camera(), mask, None)
     except CompareError as e:
         raise CalibrationError(f"the halves cannot be compared: {e}") from None
-    expected = np.hypot(sigma_at(res_a.projection, diff.pixels), sigma_at(res_b.projection, diff.pixels))
+    expected = expected_difference(res_a, res_b, diff.pixels)
     return CrossValidation((res_a, res_b), ([v.name for v in res_a.views], [v.name for v in res_b.views]), diff,
                            expected, region, (res_a.projection.distance, res_b.projection.distance),
                            _hints(options, target))

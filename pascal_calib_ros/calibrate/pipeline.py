@@ -112,6 +112,7 @@ class CalibrationResult:
     # mrcal's projection uncertainty at the median target distance over a grid of the image (None:
     # no refinement); :meth:`projection_summary` over the observed field
     projection: ProjectionUncertainty | None = None
+    refinement: RefineResult | None = None  # the final refinement (solution, covariance), for uncertainty.py
 
     def projection_summary(self) -> dict[str, float] | None:
         """Median and worst projection sigma (px) over the observed field, and the distance (m)."""
@@ -225,7 +226,7 @@ def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions
     return CalibrationResult(res.K, res.D, w, h, opt.method, res.rms, res.std, start.sol.degeneracy_ratio, reports,
                              warnings, start.sol.K, True, opt.distortion, res.poses, [v.points for v in views],
                              res.residuals, [v.circle_ids for v in views], [c.feature for c in target.circles],
-                             shape, shape_std, shape_effect, _projection(res, w, h))
+                             shape, shape_std, shape_effect, _projection(res, w, h), res)
 
 
 def _projection(res: RefineResult, w: int, h: int) -> ProjectionUncertainty | None:

@@ -28,6 +28,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+# lags (edge points, ~1 px apart) over which edge residuals are taken as correlated noise: blur and
+# the profiles' interpolation couple neighbours over 2-4 px (measured autocorrelations fall below
+# 0.02 by lag 3-5 on renders); a smooth misfit of the lens model would otherwise count as noise
+# correlated over the whole contour and inflate every sigma by its length
+EDGE_MAX_LAG = 10
+
 if TYPE_CHECKING:
     from ..geometry.camera import Camera
     from .refine import Problem, ViewData
@@ -81,7 +87,7 @@ def correlation_factors(prob: Problem, views: list[ViewData], f: np.ndarray) -> 
                 continue
             cut = np.flatnonzero(np.diff(ids)) + 1
             chunks += list(np.split(r, cut))
-        kap_e = lag_factor(chunks, circular=True)
+        kap_e = lag_factor(chunks, circular=True, max_lag=EDGE_MAX_LAG)
     if n_c:
         cr = f[n_e:n_e + 2 * n_c].reshape(-1, 2)
         rows_: list[np.ndarray] = []
@@ -207,3 +213,49 @@ def projection_uncertainty(camera_of: Callable[[np.ndarray], Camera],
     sigma = np.full(len(uv), np.nan)
     sigma[ok] = np.sqrt(np.maximum(lam, 0.0))
     return ProjectionUncertainty(uv, sigma, float(distance), us.shape)
+
+
+def rotation_free_difference_variance(camera_of: Callable[[np.ndarray], Camera],
+                                      view_poses_of: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
+                                      x: np.ndarray, cov: np.ndarray, rays: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """Per point (N,): the expected squared length of one calibration's share of a projection
+    difference at infinity after the best-fitting rotation is removed (mrcal's projection_diff).
+
+    A ray v at infinity is carried into the views' frames and back (mrcal's mean over frames:
+    p = mean_i R_i(x) R_i(x0)^T v) and projected: q(x), with Jacobian G (2N x P) by central
+    differences. The rotation fitted jointly over all points removes the part of G dx in the span
+    of H (2N x 3, the displacement of every point per small rotation), so what remains is
+    M dx with M = (I - H H^+) G, of covariance M Sigma M^T; its 2x2 diagonal blocks' traces are
+    returned."""
+    R0, _ = view_poses_of(x)
+    loc = np.einsum("vji,nj->vni", R0, rays)  # R_i^T v
+
+    def q(xx: np.ndarray) -> np.ndarray:
+        Rx, _ = view_poses_of(xx)
+        return camera_of(xx).project(np.mean(np.einsum("vij,vnj->vni", Rx, loc), axis=0)).reshape(-1)
+
+    active = np.flatnonzero(np.diag(cov) > 0)
+    G = np.zeros((2 * len(rays), len(active)))
+    for k, j in enumerate(active):
+        h = 1e-6 * max(abs(float(x[j])), 1e-3)
+        xp, xm = x.copy(), x.copy()
+        xp[j] += h
+        xm[j] -= h
+        G[:, k] = (q(xp) - q(xm)) / (2 * h)
+    M = G - H @ np.linalg.lstsq(H, G, rcond=None)[0]
+    per_row = np.sum((M @ cov[np.ix_(active, active)]) * M, axis=1)
+    return per_row.reshape(-1, 2).sum(1)
+
+
+def rotation_displacements(camera: Camera, rays: np.ndarray, step: float = 1e-6) -> np.ndarray:
+    """H (2N x 3): d project(R(w) v) / d w at w = 0 for rays v (N, 3), by central differences."""
+    from scipy.spatial.transform import Rotation
+
+    H = np.zeros((2 * len(rays), 3))
+    for k in range(3):
+        w = np.zeros(3)
+        w[k] = step
+        qp = camera.project(Rotation.from_rotvec(w).apply(rays))
+        qm = camera.project(Rotation.from_rotvec(-w).apply(rays))
+        H[:, k] = ((qp - qm) / (2 * step)).reshape(-1)
+    return H
