@@ -269,6 +269,11 @@ def cmd_study(args: argparse.Namespace) -> int:
 
         run_handeye_study(Path(args.out), views=args.views or 20, seed=args.seed, opencv4_python=args.opencv4_python)
         return EXIT_OK
+    if args.name == "trust":
+        from .sim.trust_study import trust
+
+        trust(Path(args.out), draws=args.draws, views=args.views or 12, only=args.only)
+        return EXIT_OK
     from .sim.study import run_study
 
     run_study(args.name, Path(args.out), views=args.views, seed=args.seed)
@@ -494,7 +499,9 @@ def build_parser() -> argparse.ArgumentParser:
     e.set_defaults(func=cmd_experiment)
 
     s = sub.add_parser("study", help="accuracy studies against ground truth (see README)")
-    s.add_argument("name", choices=["accuracy", "edge-bias", "grids", "target-shape", "lenses", "handeye"])
+    s.add_argument("name", choices=["accuracy", "edge-bias", "grids", "target-shape", "lenses", "handeye", "trust"])
+    s.add_argument("--draws", type=int, default=10, help="trust: noise draws and new sessions per scenario")
+    s.add_argument("--only", default="", help="trust: only the scenarios whose name contains this text")
     s.add_argument("--opencv4-python", default="", help="handeye: a Python with OpenCV 4.x for calibrateHandEye")
     s.add_argument("--out", default="out/study")
     s.add_argument("--views", type=int, default=None, help="default: 15 (lenses: 20 per lens)")
