@@ -21,7 +21,8 @@ def ros_env(domain_id: int) -> dict[str, str]:
     """Environment for node processes: own domain, discovery on this host only."""
     env = dict(os.environ)
     env.update(ROS_DOMAIN_ID=str(domain_id), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
-               AMENT_PREFIX_PATH=str(BIN.parent), PYTHONUNBUFFERED="1")
+               AMENT_PREFIX_PATH=str(BIN.parent), PYTHONUNBUFFERED="1",
+               PYTHONFAULTHANDLER="1")  # a crash (e.g. SIGSEGV in native code) prints every thread's stack
     env.pop("ROS_STATIC_PEERS", None)
     return env
 
@@ -55,9 +56,13 @@ class NodeProcess:
         return int(self.proc.wait(timeout))
 
     def log(self) -> str:
+        """The process's output so far, and its exit code once it has exited (a negative code: killed
+        by that signal, e.g. -9 after not stopping within ``stop``'s timeout)."""
         if self._log and not self._log.closed:
             self._log.flush()
-        return self.log_path.read_text() if self.log_path else ""
+        text = self.log_path.read_text() if self.log_path else ""
+        code = self.proc.poll()
+        return text if code is None else f"{text}[exit code {code}]\n"
 
 
 class RosClient:
