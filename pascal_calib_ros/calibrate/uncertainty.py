@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 # lags (edge points, ~1 px apart) over which edge residuals are taken as correlated noise: blur and
 # the profiles' interpolation couple neighbours over 2-4 px (measured autocorrelations fall below
@@ -152,6 +153,18 @@ def sandwich_covariance(prob: Problem, A: np.ndarray, f: np.ndarray, Jg: np.ndar
     return Ainv @ B @ Ainv
 
 
+def _jacobian(f: Callable[[np.ndarray], np.ndarray], x: np.ndarray, columns: np.ndarray) -> np.ndarray:
+    """Central differences of a vector function f(x) (M,) over the named columns of x: (M, K)."""
+    G = np.zeros((len(f(x)), len(columns)))
+    for k, j in enumerate(columns):
+        h = 1e-6 * max(abs(float(x[j])), 1e-3)
+        xp, xm = x.copy(), x.copy()
+        xp[j] += h
+        xm[j] -= h
+        G[:, k] = (f(xp) - f(xm)) / (2 * h)
+    return G
+
+
 @dataclass
 class ProjectionUncertainty:
     """Worst-direction pixel standard deviation of projecting a point at ``distance`` metres."""
@@ -201,13 +214,7 @@ def projection_uncertainty(camera_of: Callable[[np.ndarray], Camera],
         return camera_of(xx).project(p)
 
     active = np.flatnonzero(np.diag(cov) > 0)
-    G = np.zeros((len(p_cam), 2, len(active)))
-    for k, j in enumerate(active):
-        h = 1e-6 * max(abs(float(x[j])), 1e-3)
-        xp, xm = x.copy(), x.copy()
-        xp[j] += h
-        xm[j] -= h
-        G[:, :, k] = (q(xp) - q(xm)) / (2 * h)
+    G = _jacobian(lambda xx: q(xx).reshape(-1), x, active).reshape(len(p_cam), 2, len(active))
     C = np.einsum("nak,kl,nbl->nab", G, cov[np.ix_(active, active)], G)
     lam = np.linalg.eigvalsh(0.5 * (C + np.transpose(C, (0, 2, 1))))[:, -1]
     sigma = np.full(len(uv), np.nan)
@@ -235,13 +242,7 @@ def rotation_free_difference_variance(camera_of: Callable[[np.ndarray], Camera],
         return camera_of(xx).project(np.mean(np.einsum("vij,vnj->vni", Rx, loc), axis=0)).reshape(-1)
 
     active = np.flatnonzero(np.diag(cov) > 0)
-    G = np.zeros((2 * len(rays), len(active)))
-    for k, j in enumerate(active):
-        h = 1e-6 * max(abs(float(x[j])), 1e-3)
-        xp, xm = x.copy(), x.copy()
-        xp[j] += h
-        xm[j] -= h
-        G[:, k] = (q(xp) - q(xm)) / (2 * h)
+    G = _jacobian(q, x, active)
     M = G - H @ np.linalg.lstsq(H, G, rcond=None)[0]
     per_row = np.sum((M @ cov[np.ix_(active, active)]) * M, axis=1)
     return per_row.reshape(-1, 2).sum(1)
@@ -249,13 +250,5 @@ def rotation_free_difference_variance(camera_of: Callable[[np.ndarray], Camera],
 
 def rotation_displacements(camera: Camera, rays: np.ndarray, step: float = 1e-6) -> np.ndarray:
     """H (2N x 3): d project(R(w) v) / d w at w = 0 for rays v (N, 3), by central differences."""
-    from scipy.spatial.transform import Rotation
-
-    H = np.zeros((2 * len(rays), 3))
-    for k in range(3):
-        w = np.zeros(3)
-        w[k] = step
-        qp = camera.project(Rotation.from_rotvec(w).apply(rays))
-        qm = camera.project(Rotation.from_rotvec(-w).apply(rays))
-        H[:, k] = ((qp - qm) / (2 * step)).reshape(-1)
-    return H
+    return _jacobian(lambda w: camera.project(Rotation.from_rotvec(w).apply(rays)).reshape(-1), np.zeros(3),
+                     np.arange(3))

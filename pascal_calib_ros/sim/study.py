@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from ..calibrate.diagnostics import observed_field_mask
 from ..calibrate.pipeline import CalibrationError, CalibrationOptions, calibrate
 from ..detect.detection import DetectionParams
 from ..detect.target_detector import detect_target
@@ -256,19 +257,6 @@ LENS_COLUMNS = ("lens", "target", "method", "views", "fx_err_pct", "fy_err_pct",
                 "model_err_our_field_px", "rms", "max_ray_deg", "views_beyond_90", "field_pct", "note", "error")
 
 
-def _hull_mask(point_sets: list[np.ndarray], width: int, height: int) -> np.ndarray:
-    """Union of the convex hulls of each view's points: the observed field, (height, width) bool."""
-    import cv2
-
-    mask = np.zeros((height, width), np.uint8)
-    for p in point_sets:
-        p = np.asarray(p, float).reshape(-1, 2)
-        if len(p) >= 3:
-            hull = cv2.convexHull(p.astype(np.float32)).reshape(-1, 2)
-            cv2.fillConvexPoly(mask, np.round(hull).astype(np.int32), 1)
-    return mask.astype(bool)
-
-
 def _ray_angles_deg(cam: Camera, pixels: np.ndarray) -> np.ndarray:
     """Angle from the optical axis (degrees) of the true rays of pixels (N, 2)."""
     rays = cam.unproject(np.asarray(pixels, float).reshape(-1, 2))
@@ -295,7 +283,7 @@ def _ours(case: LensCase, cam: Camera, imgs: list[np.ndarray], target_name: str,
         res = calibrate(dets, target, CalibrationOptions(distortion=distortion))
     except CalibrationError as e:
         return _lens_row(case, target_name, method, views=f"0/{len(imgs)}", error=str(e)), None
-    mask = _hull_mask(res.edge_points, cam.width, cam.height)
+    mask = observed_field_mask(res.edge_points, cam.width, cam.height)
     angles = [float(_ray_angles_deg(cam, p).max()) for p in res.edge_points]
     rejected = sorted({v.reason for v in res.views if not v.used and v.reason})
     row = _lens_row(case, target_name, method, views=f"{res.n_used}/{len(imgs)}",
@@ -419,7 +407,7 @@ def _opencv_rows(case: LensCase, cam: Camera, poses: list[Any], sensors: list[An
                                   error=str(e).strip().splitlines()[-1]))
             continue
         pts = [ips[j] for j in used]
-        mask = _hull_mask(pts, cam.width, cam.height)
+        mask = observed_field_mask(pts, cam.width, cam.height)
         angles = [_true_ray_angle(cam, poses[ks[j]], obj) for j in used]
         row = _lens_row(case, "checkerboard_a4", method, views=f"{len(used)}/{n}",
                         **_masked_errors(cam, K, D, model, mask), rms=float(rms), max_ray_deg=max(angles),
