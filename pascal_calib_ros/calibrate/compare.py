@@ -40,7 +40,7 @@ from ..errors import PascalCalibError
 from ..geometry.camera import Camera
 from ..geometry.transform import Transform
 from ..io.camera_yaml import read_camera_yaml
-from .diagnostics import hulls_mask
+from .diagnostics import grid_pixels, grid_shape, hulls_mask
 
 DEFAULT_STEP = 16.0  # px between grid points
 MIN_POINTS = 3  # fewer common grid points leave the rotation undetermined
@@ -103,23 +103,12 @@ class ProjectionDiff:
     def image(self) -> tuple[np.ndarray, tuple[float, float, float, float]]:
         """The magnitudes on the grid as an image (rows, cols), NaN where no point is, and its
         extent (left, right, bottom, top) in pixels for ``imshow(origin="upper")``."""
-        cols = len(np.arange(self.step / 2, self.width, self.step))
-        rows = len(np.arange(self.step / 2, self.height, self.step))
+        rows, cols = grid_shape(self.width, self.height, self.step)
         img = np.full((rows, cols), np.nan)
         c = np.round((self.pixels[:, 0] - self.step / 2) / self.step).astype(int)
         r = np.round((self.pixels[:, 1] - self.step / 2) / self.step).astype(int)
         img[r, c] = self.magnitude
         return img, (0.0, cols * self.step, rows * self.step, 0.0)
-
-
-def grid_pixels(width: int, height: int, step: float = DEFAULT_STEP, mask: np.ndarray | None = None) -> np.ndarray:
-    """Pixels (N, 2) at the centres of step x step cells over a width x height image, row by row;
-    with ``mask`` (height, width), only those where it is true."""
-    us, vs = np.meshgrid(np.arange(step / 2, width, step), np.arange(step / 2, height, step))
-    uv = np.stack([us.ravel(), vs.ravel()], 1)
-    if mask is not None:
-        uv = uv[mask[uv[:, 1].astype(int), uv[:, 0].astype(int)]]
-    return uv
 
 
 def _within_range(cam: Camera, X: np.ndarray) -> np.ndarray:

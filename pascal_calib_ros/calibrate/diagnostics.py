@@ -16,6 +16,22 @@ import numpy as np
 from ..geometry.camera import Camera
 
 
+def grid_shape(width: int, height: int, step: float) -> tuple[int, int]:
+    """(rows, cols) of :func:`grid_pixels` without a mask."""
+    return len(np.arange(step / 2, height, step)), len(np.arange(step / 2, width, step))
+
+
+def grid_pixels(width: int, height: int, step: float, mask: np.ndarray | None = None) -> np.ndarray:
+    """Pixels (N, 2) at the centres of step x step cells over a width x height image, row by row;
+    with ``mask`` (height, width), only those where it is true. The one grid the distortion field,
+    the projection uncertainty and the projection difference are evaluated on."""
+    us, vs = np.meshgrid(np.arange(step / 2, width, step), np.arange(step / 2, height, step))
+    uv = np.stack([us.ravel(), vs.ravel()], 1)
+    if mask is not None:
+        uv = uv[mask[uv[:, 1].astype(int), uv[:, 0].astype(int)]]
+    return uv
+
+
 def view_hulls(points_per_view: list[np.ndarray]) -> list[np.ndarray]:
     """The convex hull (K, 2) of each view's finite points (views with fewer than 3 left out)."""
     hulls = []
@@ -50,10 +66,7 @@ def distortion_field(cam: Camera, step: int = 32, mask: np.ndarray | None = None
     """Grid of pixels (N, 2) (inside ``mask`` if given) and the displacement (N, 2) from where the
     ideal model of the lens family would image each pixel's ray to the pixel itself; rows whose
     ray the model cannot invert are left out."""
-    us, vs = np.meshgrid(np.arange(step / 2, cam.width, step), np.arange(step / 2, cam.height, step))
-    uv = np.stack([us.ravel(), vs.ravel()], 1)
-    if mask is not None:
-        uv = uv[mask[uv[:, 1].astype(int), uv[:, 0].astype(int)]]
+    uv = grid_pixels(cam.width, cam.height, step, mask)
     rays = cam.unproject(uv)
     ok = np.all(np.isfinite(rays), 1)
     if not cam.lens.wide:

@@ -29,6 +29,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .diagnostics import grid_pixels, grid_shape
+
 # lags (edge points, ~1 px apart) over which edge residuals are taken as correlated noise: blur and
 # the profiles' interpolation couple neighbours over 2-4 px (measured autocorrelations fall below
 # 0.02 by lag 3-5 on renders); a smooth misfit of the lens model would otherwise count as noise
@@ -199,8 +201,7 @@ def projection_uncertainty(camera_of: Callable[[np.ndarray], Camera],
     ``camera_of(x)`` is the camera of a parameter vector, ``view_poses_of(x)`` the views' poses
     (R (V, 3, 3) target -> camera, t (V, 3)); ``cov`` the parameters' covariance."""
     step = step or max(width, height) / 40.0
-    us, vs = np.meshgrid(np.arange(step / 2, width, step), np.arange(step / 2, height, step))
-    uv = np.stack([us.ravel(), vs.ravel()], 1)
+    uv = grid_pixels(width, height, step)
     cam = camera_of(x)
     rays = cam.unproject(uv)
     ok = np.all(np.isfinite(rays), 1)
@@ -219,7 +220,7 @@ def projection_uncertainty(camera_of: Callable[[np.ndarray], Camera],
     lam = np.linalg.eigvalsh(0.5 * (C + np.transpose(C, (0, 2, 1))))[:, -1]
     sigma = np.full(len(uv), np.nan)
     sigma[ok] = np.sqrt(np.maximum(lam, 0.0))
-    return ProjectionUncertainty(uv, sigma, float(distance), us.shape)
+    return ProjectionUncertainty(uv, sigma, float(distance), grid_shape(width, height, step))
 
 
 def rotation_free_difference_variance(camera_of: Callable[[np.ndarray], Camera],
