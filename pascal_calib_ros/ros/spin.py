@@ -35,13 +35,6 @@ def run_node(make_node: Callable[[], Any], errors: tuple[type[BaseException], ..
             raise
     finally:
         node.stop()
-        # detach the node while the executor is alive: destroy_node() wakes the node's executor,
-        # and waking one that shutdown() has finished touches its destroyed guard condition
-        # (SIGSEGV at exit, about 1 run in 12 of the arm test)
-        try:
-            node.executor = None
-        except Exception:  # a context already shut down: nothing left to wake
-            pass
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
