@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import IO, Any
 
 BIN = Path(sys.executable).parent
+RESPONSE_MATCH_GRACE = 0.5  # s a new service client waits after the service is ready (see call_trigger)
 
 
 def ros_env(domain_id: int) -> dict[str, str]:
@@ -78,6 +79,7 @@ class RosClient:
         self.node = rclpy.create_node(name, context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
+        self._clients: dict[str, Any] = {}
 
     def spin_until(self, predicate: Callable[[], bool], timeout: float) -> bool:
         deadline = time.monotonic() + timeout
@@ -88,18 +90,24 @@ class RosClient:
         return predicate()
 
     def call_trigger(self, service: str, timeout: float = 60.0) -> Any:
+        """Call a std_srvs/Trigger service and return its response. One client per service for the
+        whole test: a new client's response reader may not yet be matched by the server's response
+        writer when the service already reports ready (Fast DDS then drops the answer), so a new
+        client waits RESPONSE_MATCH_GRACE s after it first sees the service."""
         from std_srvs.srv import Trigger
 
-        cli = self.node.create_client(Trigger, service)
-        try:
+        cli = self._clients.get(service)
+        if cli is None:
+            cli = self._clients[service] = self.node.create_client(Trigger, service)
             if not self.spin_until(cli.service_is_ready, 20.0):
                 raise TimeoutError(f"service {service} not available")
-            fut = cli.call_async(Trigger.Request())
-            if not self.spin_until(fut.done, timeout):
-                raise TimeoutError(f"no answer from {service} within {timeout} s")
-            return fut.result()
-        finally:
-            self.node.destroy_client(cli)
+            self.spin_until(lambda: False, RESPONSE_MATCH_GRACE)
+        elif not self.spin_until(cli.service_is_ready, 20.0):
+            raise TimeoutError(f"service {service} not available")
+        fut = cli.call_async(Trigger.Request())
+        if not self.spin_until(fut.done, timeout):
+            raise TimeoutError(f"no answer from {service} within {timeout} s")
+        return fut.result()
 
     def close(self) -> None:
         self.executor.shutdown()
