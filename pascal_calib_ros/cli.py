@@ -10,6 +10,7 @@ import argparse
 import json
 import sys
 import time
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +22,7 @@ from .detect.detection import Detection, DetectionParams
 from .detect.target_detector import detect_target
 from .geometry.camera import rectified_projection
 from .geometry.lens import lens_model
+from .geometry.transform import Transform
 from .io.camera_yaml import CameraInfoData, write_camera_yaml
 from .io.images import ImageReadError, expand_image_args, read_grey
 from .targets import Target, TargetError, resolve_target
@@ -36,29 +38,39 @@ def _progress(enabled: bool, k: int, n: int, text: str) -> None:
             sys.stderr.write("\n")
 
 
-def detect_files(paths: list[Path], target_name: str, params: DetectionParams, progress: bool) -> list[Detection]:
-    target = resolve_target(target_name)
+def detect_images(items: Iterable[tuple[str, np.ndarray | str]], n: int, target: Target, params: DetectionParams,
+                  progress: bool) -> list[Detection]:
+    """Detect ``target`` in (name, grey image or why it cannot be read) items, in order; an image
+    whose size differs from the first readable one is rejected."""
     dets: list[Detection] = []
     size: tuple[int, int] | None = None
-    for k, p in enumerate(paths, 1):
-        _progress(progress, k, len(paths), p.name)
-        try:
-            img = read_grey(p)
-        except ImageReadError as e:
-            d = Detection(0, 0, name=p.name, reason=str(e))
-            dets.append(d)
+    for k, (name, img) in enumerate(items, 1):
+        _progress(progress, k, n, name)
+        if isinstance(img, str):
+            dets.append(Detection(0, 0, name=name, reason=img))
             continue
         if size is not None and (img.shape[1], img.shape[0]) != size:
-            dets.append(Detection(img.shape[1], img.shape[0], name=p.name,
+            dets.append(Detection(img.shape[1], img.shape[0], name=name,
                                   reason=f"image size {img.shape[1]}x{img.shape[0]} differs from {size[0]}x{size[1]}"))
             continue
         size = (img.shape[1], img.shape[0])
-        dets.append(detect_target(img, target, params, name=p.name))
+        dets.append(detect_target(img, target, params, name=name))
     if size is not None:
         for d in dets:
             if d.width == 0:
                 d.width, d.height = size
     return dets
+
+
+def detect_files(paths: list[Path], target_name: str, params: DetectionParams, progress: bool) -> list[Detection]:
+    def read() -> Iterator[tuple[str, np.ndarray | str]]:
+        for p in paths:
+            try:
+                yield p.name, read_grey(p)
+            except ImageReadError as e:
+                yield p.name, str(e)
+
+    return detect_images(read(), len(paths), resolve_target(target_name), params, progress)
 
 
 def format_summary(res: CalibrationResult) -> str:
@@ -104,6 +116,16 @@ def format_summary(res: CalibrationResult) -> str:
         lines.append("worst circles (edge RMS over all views): " + ", ".join(f"{k} {v:.3f} px" for k, v in worst))
     lines += [f"warning: {w}" for w in res.warnings]
     return "\n".join(lines)
+
+
+def _write_report(res: CalibrationResult, dets: list[Detection], out_dir: str, paths: list[Path]) -> None:
+    """report.pdf / .png / .json (io/report.py), the worst views drawn on their own images."""
+    from .io.report import write_report
+
+    by_name = {p.name: p for p in paths}
+    t0 = time.perf_counter()
+    files = write_report(res, dets, out_dir, images=lambda n: read_grey(by_name[n]) if n in by_name else None)
+    print(f"wrote {files.pdf}, {files.png} and {files.json} ({time.perf_counter() - t0:.1f} s)")
 
 
 def _target_or_none(name: str) -> Target | None:
@@ -152,10 +174,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     out = write_camera_yaml(args.output, info)
     print(f"wrote {out}")
     if args.report:
-        from .io.report import write_report
-
-        png, js = write_report(res, dets, args.report)
-        print(f"wrote {png} and {js}")
+        _write_report(res, dets, args.report, paths)
     if args.cross_validate:
         # two interleaved halves against their projection uncertainty (calibrate/cross_validation.py); a
         # disagreement or a refusal is a WARNING, not a failure: the calibration is written either way
@@ -171,31 +190,68 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _handeye_bag_input(args: argparse.Namespace, target: Target, params: DetectionParams
+                       ) -> tuple[str, str, list[Detection], list[Transform | None]] | None:
+    """(base frame, tool frame, detections, robot poses) of the still frames of an arm session
+    bag (:mod:`.calibrate.arm_bag`), or None after printing why not."""
+    from .calibrate.arm_bag import read_arm_bag
+    from .io.bags import BagError
+
+    try:
+        bag = read_arm_bag(args.bag, args.image_topic, args.pose_topic, args.pose_max_age, args.tool_frame)
+        print(bag.summary())
+        if not bag.used:
+            print(f"error: no still frame with a robot pose in {args.bag} (the robot pose changes by more than "
+                  "1e-6 m or 1e-6 rad around every frame)", file=sys.stderr)
+            return None
+        frames = [(f.name, img) for f, img in bag.images()]  # only the used frames are decoded
+    except BagError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return None
+    dets = detect_images(frames, len(frames), target, params, progress=sys.stderr.isatty())
+    return bag.frame_id, bag.child_frame_id, dets, [f.pose for f in bag.used]
+
+
 def cmd_handeye(args: argparse.Namespace) -> int:
-    """Joint intrinsic + hand-eye calibration from images and POSES.yaml."""
+    """Joint intrinsic + hand-eye calibration from images and POSES.yaml, or from an arm session bag."""
     from .calibrate.handeye import HandEyeError, HandEyeOptions, calibrate_hand_eye
     from .io.hand_eye_yaml import PosesYamlError, read_poses_yaml, write_hand_eye_yaml
 
     target = _target_or_none(args.target)
     if target is None:
         return EXIT_INPUT
-    try:
-        frame_id, child_id, poses = read_poses_yaml(args.poses)
-    except PosesYamlError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return EXIT_INPUT
-    paths = expand_image_args(args.images)
-    if not paths:
-        print("error: no images given", file=sys.stderr)
-        return EXIT_INPUT
-    missing = [p.name for p in paths if p.name not in poses]
-    if len(missing) == len(paths):
-        print(f"error: no image has a pose in {args.poses} (images are matched by file name, e.g. {paths[0].name})",
-              file=sys.stderr)
-        return EXIT_INPUT
     params = DetectionParams.for_lens(lens_model(args.distortion).wide, gamma=args.gamma, max_blur=args.max_blur)
-    dets = detect_files(paths, args.target, params, progress=sys.stderr.isatty())
-    robot = [poses.get(p.name) for p in paths]
+    if args.bag and (args.poses or args.images):
+        print("error: give either --bag BAG or --poses POSES.yaml IMAGES..., not both", file=sys.stderr)
+        return EXIT_INPUT
+    if args.bag:
+        loaded = _handeye_bag_input(args, target, params)
+        if loaded is None:
+            return EXIT_INPUT
+        frame_id, child_id, dets, robot = loaded
+        pose_source = Path(args.bag).name
+        paths: list[Path] = []  # no image files: the report draws no view images
+    else:
+        if not args.poses or not args.images:
+            print("error: give --poses POSES.yaml and image files or folders, or --bag BAG", file=sys.stderr)
+            return EXIT_INPUT
+        try:
+            frame_id, child_id, poses = read_poses_yaml(args.poses)
+        except PosesYamlError as e:
+            print(f"error: {e}", file=sys.stderr)
+            return EXIT_INPUT
+        paths = expand_image_args(args.images)
+        if not paths:
+            print("error: no images given", file=sys.stderr)
+            return EXIT_INPUT
+        missing = [p.name for p in paths if p.name not in poses]
+        if len(missing) == len(paths):
+            print(f"error: no image has a pose in {args.poses} (images are matched by file name, e.g. "
+                  f"{paths[0].name})", file=sys.stderr)
+            return EXIT_INPUT
+        dets = detect_files(paths, args.target, params, progress=sys.stderr.isatty())
+        robot = [poses.get(p.name) for p in paths]
+        pose_source = Path(args.poses).name
     opts = CalibrationOptions(method=args.method or "", distortion=args.distortion, zero_skew=not args.skew)
     he = HandEyeOptions(args.mode, args.robot_sigma_mm, args.robot_sigma_deg, not args.fixed_robot_sigma)
     t0 = time.perf_counter()
@@ -204,7 +260,7 @@ def cmd_handeye(args: argparse.Namespace) -> int:
     except (HandEyeError, CalibrationError) as e:
         for d, r in zip(dets, robot, strict=True):
             if r is None:
-                print(f"  rejected  {d.name}  no pose in {Path(args.poses).name}")
+                print(f"  rejected  {d.name}  no pose in {pose_source}")
             elif not d.ok:
                 print(f"  rejected  {d.name}  {d.reason}")
         print(f"error: hand-eye calibration failed: {e}", file=sys.stderr)
@@ -228,10 +284,7 @@ def cmd_handeye(args: argparse.Namespace) -> int:
           f"--x {t[0]:.6f} --y {t[1]:.6f} --z {t[2]:.6f} --qx {q[0]:.7f} --qy {q[1]:.7f} --qz {q[2]:.7f} "
           f"--qw {q[3]:.7f} --frame-id {parent} --child-frame-id {args.camera_frame}")
     if args.report:
-        from .io.report import write_report
-
-        png, js = write_report(cal, dets, args.report)
-        print(f"wrote {png} and {js}")
+        _write_report(cal, dets, args.report, paths)
     return EXIT_OK
 
 
@@ -273,6 +326,11 @@ def cmd_study(args: argparse.Namespace) -> int:
         from .sim.trust_study import trust
 
         trust(Path(args.out), draws=args.draws, views=args.views or 12, only=args.only)
+        return EXIT_OK
+    if args.name == "model-bias":
+        from .sim.model_bias_study import model_bias_study
+
+        model_bias_study(Path(args.out), views=args.views or 12)
         return EXIT_OK
     from .sim.study import run_study
 
@@ -394,7 +452,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--target-shape", nargs="?", const="warp", choices=[k for k in SHAPE_CHOICES if k],
                    help="also estimate the printed sheet's shape (grids, checkerboards): warp (parabolic "
                         "out-of-plane bend; the default), pitch (y/x scale ratio) or all")
-    c.add_argument("--report", metavar="DIR", help="write report.png and report.json into DIR")
+    c.add_argument("--report", metavar="DIR", help="write report.pdf (7 pages), report.png and report.json into DIR")
     c.add_argument("--cross-validate", action="store_true",
                    help="also calibrate two interleaved halves of the views and compare them against their "
                         "projection uncertainty (a model error shows as a larger difference; needs 2 x --min-views "
@@ -402,9 +460,17 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("images", nargs="+", help="image files or folders")
     c.set_defaults(func=cmd_calibrate)
 
-    h = sub.add_parser("handeye", help="intrinsics + hand-eye transform from images and robot poses (POSES.yaml)")
+    h = sub.add_parser("handeye", help="intrinsics + hand-eye transform from images and robot poses (POSES.yaml), "
+                                       "or from a recorded arm session (rosbag2)")
     h.add_argument("--target", required=True, help="target YAML file or packaged name")
-    h.add_argument("--poses", required=True, help="POSES.yaml: the tool pose in the base frame per image")
+    h.add_argument("--poses", help="POSES.yaml: the tool pose in the base frame per image")
+    h.add_argument("--bag", help="instead of --poses and images: a rosbag2 arm session (images and the tool pose "
+                                 "as PoseStamped or TransformStamped); one still frame per rest of the arm is used")
+    h.add_argument("--image-topic", default="", help="with --bag: the image topic (default: the only one)")
+    h.add_argument("--pose-topic", default="", help="with --bag: the tool pose topic (default: the only one)")
+    h.add_argument("--pose-max-age", type=float, default=0.1,
+                   help="with --bag: a frame's pose is interpolated from samples at most this many seconds away")
+    h.add_argument("--tool-frame", default="", help="with --bag: the tool frame of PoseStamped poses (default tool0)")
     h.add_argument("--mode", required=True, choices=("eye_in_hand", "eye_to_hand"))
     h.add_argument("-o", "--output", required=True, help="camera YAML path")
     h.add_argument("--hand-eye-out", default="", help="HAND_EYE.yaml path (default: hand_eye.yaml beside -o)")
@@ -418,8 +484,8 @@ def build_parser() -> argparse.ArgumentParser:
     h.add_argument("--robot-sigma-mm", type=float, default=0.1, help="the arm's pose accuracy per axis (start)")
     h.add_argument("--robot-sigma-deg", type=float, default=0.01)
     h.add_argument("--fixed-robot-sigma", action="store_true", help="do not estimate the arm's accuracy")
-    h.add_argument("--report", metavar="DIR", help="write report.png and report.json into DIR")
-    h.add_argument("images", nargs="+", help="image files or folders")
+    h.add_argument("--report", metavar="DIR", help="write report.pdf (7 pages), report.png and report.json into DIR")
+    h.add_argument("images", nargs="*", help="image files or folders (with --poses)")
     h.set_defaults(func=cmd_handeye)
 
     df = sub.add_parser("diff", help="projection difference between two calibrations of one camera (after the "
@@ -499,7 +565,8 @@ def build_parser() -> argparse.ArgumentParser:
     e.set_defaults(func=cmd_experiment)
 
     s = sub.add_parser("study", help="accuracy studies against ground truth (see README)")
-    s.add_argument("name", choices=["accuracy", "edge-bias", "grids", "target-shape", "lenses", "handeye", "trust"])
+    s.add_argument("name", choices=["accuracy", "edge-bias", "grids", "target-shape", "lenses", "handeye", "trust",
+                                        "model-bias"])
     s.add_argument("--draws", type=int, default=10, help="trust: noise draws and new sessions per scenario")
     s.add_argument("--only", default="", help="trust: only the scenarios whose name contains this text")
     s.add_argument("--opencv4-python", default="", help="handeye: a Python with OpenCV 4.x for calibrateHandEye")

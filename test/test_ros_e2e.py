@@ -8,6 +8,7 @@ import json
 import signal
 import time
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -150,7 +151,13 @@ def test_folder_session_calibrate_commit_reset(tmp_path: Path, session: Path) ->
         _check_k(info[-1].k, _truth(session))
         doc = yaml.safe_load((tmp_path / "out" / "e2e_cam.yaml").read_text())
         assert doc["camera_name"] == "e2e_cam"
-        assert len(list((tmp_path / "out" / "frames").glob("*.png"))) >= 6
+        frames = {f.stem for f in (tmp_path / "out" / "frames").glob("*.png")}
+        assert len(frames) >= 6
+        # the report of the calibration, its worst views read back from the stored frames by name
+        assert (tmp_path / "out" / "report.pdf").stat().st_size > 10_000
+        report = json.loads((tmp_path / "out" / "report.json").read_text())
+        assert report["residuals"]["worst_views"] and set(report["residuals"]["worst_views"]) <= frames
+        assert report["residuals"]["model_bias"]["detected"] is False
         # ~/commit: driver missing, then accepting, then refusing
         r = client.call_trigger("/pascal_calib/commit")
         assert not r.success and "not available" in r.message
@@ -374,3 +381,102 @@ def test_lockstep_replay_started_before_the_node(tmp_path: Path, session: Path) 
         rep.stop()
         if cal is not None:
             assert cal.stop() == 0, cal.log()
+
+
+def _bgr(msg: Any) -> np.ndarray:
+    """A bgr8 sensor_msgs/Image as an (H, W, 3) array."""
+    assert msg.encoding == "bgr8"
+    return np.frombuffer(bytes(msg.data), np.uint8).reshape(msg.height, msg.step)[:, :msg.width * 3].reshape(
+        msg.height, msg.width, 3)
+
+
+def test_detections_show_footprints_coverage_bars_and_state(tmp_path: Path, session: Path) -> None:
+    """~/detections is the session's whole GUI: the last frame's picture is the one the overlay
+    draws for the same frames (the stored views' footprints, the coverage bars, the view count and
+    the frame's verdict), and its bars agree with the coverage ~/status reports."""
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import Image
+    from std_msgs.msg import Header
+
+    from pascal_calib_ros.calibrate.collector import AXES, ViewCollector
+    from pascal_calib_ros.calibrate.diagnostics import view_hulls
+    from pascal_calib_ros.calibrate.live_overlay import (
+        BAR_EMPTY_BGR,
+        BAR_FULL_BGR,
+        bar_rects,
+        draw_live_overlay,
+        feature_points,
+        panel_width,
+    )
+    from pascal_calib_ros.detect.detection import DetectionParams
+    from pascal_calib_ros.detect.target_detector import detect_target
+    from pascal_calib_ros.io.images import IMAGE_SUFFIXES, read_grey
+
+    min_views = 6
+    dom = next_domain_id()
+    cal = NodeProcess("calibration_node", {"min_views": min_views}, dom, tmp_path / "cal.log")
+    client = RosClient(dom)
+    rep = None
+    try:
+        status = status_subscription(client)
+        pictures: list = []
+        client.node.create_subscription(Image, "/pascal_calib/detections", pictures.append, 10)
+        examined: list = []
+        qos = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        client.node.create_subscription(Header, "/pascal_calib/examined_frames", examined.append, qos)
+        assert client.spin_until(lambda: client.node.count_publishers("/pascal_calib/detections") > 0, 20), cal.log()
+        rep = NodeProcess("replay_node", {"source": str(session), "wait_for_subscribers": 1, "exit_when_done": True},
+                          dom, tmp_path / "rep.log")
+        assert client.spin_until(lambda: rep.proc.poll() is not None, 60), rep.log()
+        assert rep.wait(1) == 0, rep.log()
+
+        def last_picture_arrived() -> bool:
+            return bool(examined and pictures and pictures[-1].header.stamp == examined[-1].stamp)
+
+        assert client.spin_until(last_picture_arrived, 10), cal.log()
+        client.spin_until(lambda: False, 1.1)  # a status after the last frame
+        got = _bgr(pictures[-1])
+        kv = latest_status(status)
+    finally:
+        client.close()
+        if rep is not None:
+            rep.stop()
+        assert cal.stop() == 0, cal.log()
+
+    # the same frames through the same detector and collector: the picture the node should draw
+    files = sorted(p for p in session.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+    collector = ViewCollector(min_views)
+    footprints: list[np.ndarray] = []
+    for f in files:
+        img = read_grey(f)
+        det = detect_target(img, resolve_target("ring_a4"), DetectionParams.for_lens(False))
+        if det.ok:
+            accepted, why = collector.offer(det)
+            verdict = f"view {len(collector.views) - 1} stored" if accepted else f"ok; not stored: {why}"
+            if accepted:
+                footprints += view_hulls([feature_points(det)])
+        else:
+            verdict = det.reason
+    h, w = img.shape
+    assert got.shape == (h, w + panel_width(h), 3)
+    assert kv["views_accepted"] == str(len(collector.views)) and len(footprints) == len(collector.views) >= min_views
+    want = draw_live_overlay(img, det, footprints, collector.coverage(), len(collector.views), min_views,
+                             collector.ready, verdict, verdict_ok=det.ok)
+    differ = np.any(got != want, axis=2)
+    assert differ.mean() < 1e-3, f"{differ.sum()} pixels differ"  # subpixel edges may round differently
+    # inside each footprint the frame is tinted (magenta: blue and red above green)
+    for hull in footprints:
+        x, y = np.round(hull.mean(0)).astype(int)
+        b, g, r = got[y, x].astype(int)
+        assert b > g and r > g, (x, y, got[y, x])
+    # the bars show what ~/status reports
+    for axis, (x0, y0, x1, y1) in bar_rects(w, h).items():
+        c = float(kv[f"coverage_{axis}"])
+        ym = (y0 + y1) // 2
+        if c >= 1.0:
+            assert np.all(got[y0:y1, x0:x1] == BAR_FULL_BGR), axis
+        else:
+            assert abs(int(got[ym, x0 + round(c * (x1 - x0) / 2), 1]) - 255 * c) <= 2, (axis, c)
+            if c < 0.95:
+                assert np.array_equal(got[ym, x1 - 2], BAR_EMPTY_BGR), axis
+    assert {f"coverage_{a}" for a in AXES} <= set(kv)

@@ -26,6 +26,8 @@ from ..geometry.transform import Transform
 AXES = ("x", "y", "size", "skew")
 SPANS = {"x": 0.6, "y": 0.6, "size": 0.25, "skew": 0.3}
 
+READY_COVERAGE = 0.5  # ready: every coverage axis at least half covered (the bars on ~/detections)
+
 
 def view_parameters(det: Detection) -> np.ndarray | None:
     """(x, y, size, skew) of a usable detection, None without a circle."""
@@ -94,7 +96,7 @@ class ViewCollector:
     @property
     def ready(self) -> bool:
         """Enough views and every axis at least half covered."""
-        return len(self.views) >= self.min_views and min(self.coverage().values()) >= 0.5
+        return len(self.views) >= self.min_views and min(self.coverage().values()) >= READY_COVERAGE
 
     def clear(self) -> int:
         n = len(self.views)

@@ -42,7 +42,6 @@ import numpy as np
 from ..detect.detection import Detection
 from ..targets import Target
 from .compare import CompareError, ProjectionDiff, projection_difference
-from .diagnostics import observed_field_mask
 from .pipeline import CalibrationError, CalibrationOptions, CalibrationResult, calibrate
 from .uncertainty import rotation_displacements, rotation_free_difference_variance
 
@@ -188,9 +187,8 @@ def cross_validate(dets: list[Detection], target: Target, options: CalibrationOp
     if res_a.projection is None or res_b.projection is None:
         raise CalibrationError("a half has no projection uncertainty (no parameter covariance); cannot judge the "
                                "difference")
-    w, h = res_a.width, res_a.height
-    mask_a = observed_field_mask(res_a.edge_points, w, h)
-    mask_b = observed_field_mask(res_b.edge_points, w, h)
+    mask_a = res_a.observed_field()
+    mask_b = res_b.observed_field()
     mask, region = mask_a & mask_b, "common observed field"
     if not mask.any():
         mask, region = mask_a | mask_b, "union of the observed fields (they do not overlap)"

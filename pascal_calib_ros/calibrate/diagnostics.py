@@ -67,9 +67,29 @@ def distortion_field(cam: Camera, step: int = 32, mask: np.ndarray | None = None
     ideal model of the lens family would image each pixel's ray to the pixel itself; rows whose
     ray the model cannot invert are left out."""
     uv = grid_pixels(cam.width, cam.height, step, mask)
+    if not len(uv):
+        return uv, np.zeros((0, 2))
     rays = cam.unproject(uv)
     ok = np.all(np.isfinite(rays), 1)
     if not cam.lens.wide:
         ok &= rays[:, 2] > 1e-6
     ideal = Camera(cam.K, np.zeros(cam.lens.n), cam.width, cam.height, cam.model).project(rays[ok])
     return uv[ok], uv[ok] - ideal
+
+
+def model_valid(cam: Camera, uv: np.ndarray, tolerance: float = 0.05) -> np.ndarray:
+    """(N,) bool: pixels where the lens model holds as a camera model: its ray exists (the model
+    is invertible there), projects back onto the pixel within ``tolerance`` px, and lies inside
+    the angle up to which the model's radius grows monotonically (``LensModel.max_angle``)."""
+    if not len(uv):
+        return np.zeros(0, bool)
+    rays = cam.unproject(uv)
+    ok = np.all(np.isfinite(rays), 1)
+    if not cam.lens.wide:
+        ok &= rays[:, 2] > 1e-9
+    if ok.any():
+        back = cam.project(rays[ok])
+        ok[ok] &= np.linalg.norm(back - uv[ok], axis=1) < tolerance
+        r = rays[ok] / np.linalg.norm(rays[ok], axis=1, keepdims=True)
+        ok[ok] &= np.arccos(np.clip(r[:, 2], -1, 1)) <= cam.lens.max_angle(cam.D)
+    return ok

@@ -613,7 +613,8 @@ def calibrate_hand_eye(dets: list[Detection], robot_poses: Sequence[Transform | 
     calib = replace(cal, K=K, D=D, rms=rms, std=std, views=reports, warnings=warnings,
                     poses=[np.r_[c.rotvec, c.translation] for c in Cf],
                     edge_points=[v.points for v in views], edge_residuals=edge_res,
-                    edge_circles=[v.circle_ids for v in views])
+                    edge_circles=[v.circle_ids for v in views], corner_points=[v.corners for v in views],
+                    corner_residuals=[])
     if axisymmetric:
         warnings.append("a single ring: the target's rotation about its axis is not observable (reported "
                         "arbitrarily); X is not affected")

@@ -44,6 +44,7 @@ from .refine import (
     refine,
     shape_frame_of,
 )
+from .residual_stats import ModelBias, ResidualSamples, model_bias, radial, regional, residual_samples
 from .uncertainty import ProjectionUncertainty
 from .zhang import calibrate_zhang
 
@@ -113,13 +114,49 @@ class CalibrationResult:
     # no refinement); :meth:`projection_summary` over the observed field
     projection: ProjectionUncertainty | None = None
     refinement: RefineResult | None = None  # the final refinement (solution, covariance), for uncertainty.py
+    # per used view: checkerboard corners (M, 2) and their residuals (observed - predicted)
+    corner_points: list[np.ndarray] = field(default_factory=list)
+    corner_residuals: list[np.ndarray] = field(default_factory=list)
+
+    def feature_points(self) -> list[np.ndarray]:
+        """Per used view, its edge points and checkerboard corners (N, 2): what the observed field
+        is the union of the convex hulls of."""
+        out = []
+        for k, p in enumerate(self.edge_points):
+            c = self.corner_points[k] if k < len(self.corner_points) else np.zeros((0, 2))
+            out.append(np.concatenate([np.asarray(p, float).reshape(-1, 2), np.asarray(c, float).reshape(-1, 2)]))
+        return out
+
+    def observed_field(self, margin: float = 0.0) -> np.ndarray:
+        """(height, width) bool: the union of the used views' convex hulls of feature points."""
+        return observed_field_mask(self.feature_points(), self.width, self.height, margin)
+
+    def model_bias(self) -> ModelBias:
+        """The verdict whether the residuals carry a pattern beyond noise (:mod:`.residual_stats`)."""
+        s = self.residual_samples()
+        return model_bias(regional(s, self.width, self.height), radial(s, (float(self.K[0, 2]), float(self.K[1, 2]))),
+                          self.width, self.height, self.model)
+
+    def with_model_bias_warning(self) -> CalibrationResult:
+        """Add the model-bias verdict to the warnings when a bias is detected (so the summary, the
+        CLI and the node's answer say it); returns self."""
+        if self.refined and self.edge_points:
+            mb = self.model_bias()
+            if mb.detected and mb.hint not in self.warnings:
+                self.warnings.append(mb.hint)
+        return self
+
+    def residual_samples(self) -> ResidualSamples:
+        """Every edge and corner residual as a vector at its pixel (:mod:`.residual_stats`)."""
+        kappa = self.refinement.kappa if self.refinement is not None else (1.0, 1.0)
+        return residual_samples(self.edge_points, self.edge_residuals, self.edge_circles, self.corner_points,
+                                self.corner_residuals, kappa)
 
     def projection_summary(self) -> dict[str, float] | None:
         """Median and worst projection sigma (px) over the observed field, and the distance (m)."""
         if self.projection is None:
             return None
-        return self.projection.summary(observed_field_mask(self.edge_points, self.width, self.height)
-                                       if self.edge_points else None)
+        return self.projection.summary(self.observed_field() if self.edge_points else None)
 
     def projection_line(self) -> str:
         """One line for people: 'projection sigma 0.04 px median, 0.2 px worst in the observed field'."""
@@ -226,7 +263,8 @@ def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions
     return CalibrationResult(res.K, res.D, w, h, opt.method, res.rms, res.std, start.sol.degeneracy_ratio, reports,
                              warnings, start.sol.K, True, opt.distortion, res.poses, [v.points for v in views],
                              res.residuals, [v.circle_ids for v in views], [c.feature for c in target.circles],
-                             shape, shape_std, shape_effect, _projection(res, w, h), res)
+                             shape, shape_std, shape_effect, _projection(res, w, h), res,
+                             [v.corners for v in views], res.corner_residuals).with_model_bias_warning()
 
 
 def _projection(res: RefineResult, w: int, h: int) -> ProjectionUncertainty | None:
@@ -559,9 +597,37 @@ def _zhang(dets: list[Detection], target: Target, opt: CalibrationOptions, repor
         if dets[k].ok and not rep.used:
             rep.reason = "checkerboard not found"
     names = [n for n in intrinsic_names(DISTORTION_CHOICES[opt.distortion][0]) if n != "skew"]
-    return CalibrationResult(K, D, w, h, "zhang", rms, {n: float(s) for n, s in zip(names, std, strict=False)
-                                                         if np.isfinite(s)},
-                             float("nan"), reports, [], None, True, opt.distortion)
+    corners, residuals = _zhang_residuals(dets, sorted(used), target, K, D)
+    res = CalibrationResult(K, D, w, h, "zhang", rms, {n: float(s) for n, s in zip(names, std, strict=False)
+                                                        if np.isfinite(s)},
+                            float("nan"), reports, [], None, True, opt.distortion,
+                            edge_points=[np.zeros((0, 2)) for _ in corners],
+                            edge_residuals=[np.zeros(0) for _ in corners],
+                            edge_circles=[np.zeros(0, int) for _ in corners], corner_points=corners,
+                            corner_residuals=residuals)
+    return res.with_model_bias_warning()
+
+
+def _zhang_residuals(dets: list[Detection], used: list[int], target: Target, K: np.ndarray, D: np.ndarray
+                     ) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Corners of the used views and their residuals (observed - predicted) after posing each
+    view with OpenCV's solvePnP at the calibrated K, D (the report's residual statistics)."""
+    import cv2
+
+    assert target.checkerboard is not None
+    obj = np.c_[target.checkerboard.corner_points(), np.zeros(len(target.checkerboard.corner_points()))]
+    corners, residuals = [], []
+    for k in used:
+        c = np.asarray(dets[k].corners, float)
+        if len(c) != len(obj):
+            continue
+        ok, rvec, tvec = cv2.solvePnP(obj, c, K, D)
+        if not ok:
+            continue
+        q = cv2.projectPoints(obj, rvec, tvec, K, D)[0].reshape(-1, 2)
+        corners.append(c)
+        residuals.append(c - q)
+    return corners, residuals
 
 
 def _rejection_summary(reports: list[ViewReport]) -> str:

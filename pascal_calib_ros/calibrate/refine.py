@@ -102,6 +102,7 @@ class RefineResult:
     intr0: np.ndarray | None = None
     covariance: np.ndarray | None = None
     kappa: tuple[float, float] = (1.0, 1.0)  # correlation factors of the edge and the corner rows
+    corner_residuals: list[np.ndarray] = field(default_factory=list)  # per view (M, 2), observed - predicted
 
     def camera_of(self, x: np.ndarray) -> Camera:
         """The camera of a parameter vector of :attr:`problem`."""
@@ -596,11 +597,13 @@ def refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[n
     per_view = [er[prob.view_of_pt == i] for i in range(len(views))]
     view_rms = np.array([np.sqrt(np.mean(r * r)) if len(r) else 0.0 for r in per_view])
     corner_rms = np.zeros(len(views))
+    corner_res = [np.zeros((0, 2)) for _ in views]
     if prob.n_corner:
-        cr = prob._corners(K, D, R, dR, t, shape_v, jac=False)[0].reshape(-1, 2)
+        cr = -prob._corners(K, D, R, dR, t, shape_v, jac=False)[0].reshape(-1, 2)  # observed - predicted
         for i in range(len(views)):
             sel = prob.view_of_corner == i
             if sel.any():
+                corner_res[i] = cr[sel]
                 corner_rms[i] = float(np.sqrt(np.mean(np.sum(cr[sel] ** 2, 1))))
     # standard deviations from the sandwich covariance with correlated, per-view noise (uncertainty.py)
     std: dict[str, float] = {}
@@ -626,4 +629,4 @@ def refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[n
     return RefineResult(K, D, [p.copy() for p in poses], offsets, std, view_rms, corner_rms,
                         float(np.sqrt(np.mean(er * er))), per_view, float(sol.cost), int(sol.nfev),
                         bool(sol.success), str(sol.message), dict(zip(SHAPE_NAMES, map(float, shape_v), strict=True)),
-                        shape_std, lens.name, float(corr), sol.x, prob, intr0, cov, kappa)
+                        shape_std, lens.name, float(corr), sol.x, prob, intr0, cov, kappa, corner_res)

@@ -1,35 +1,103 @@
-"""Calibration report: one PNG a person reads at a glance, and a JSON with the same numbers.
+"""Calibration report: ``report.pdf`` read page by page, ``report.png`` on one page, and
+``report.json`` with every number the pages show.
 
-Panels: edge residuals of every used view (magnified vectors along the edge normal), coverage of
-the image by the target across views, the distortion field (displacement in pixels between the
-distorted and the ideal pinhole image), and the parameters with their standard deviations.
+Pages of the PDF, in the order a person asks:
+1. summary and verdict (parameters with sigma, views, projection uncertainty, the model-bias
+   verdict in words, every warning);
+2. coverage (each used view's outline, the observed field, views per region);
+3. residuals as mrcal shows them (magnitudes; directions coloured by angle, so a lens-model bias
+   shows as clusters; the mean residual per region);
+4. residual statistics (mean radial residual against image radius, histogram against the
+   expected noise, RMS per view);
+5. the worst views on their own images with their residuals magnified (when the images are at
+   hand);
+6. the lens model where it holds (the distortion field over the observed field plus a margin, the
+   region where the model is invertible and monotonic);
+7. projection uncertainty (mrcal's, at the median target distance).
+The numbers come from :mod:`..calibrate.residual_stats` and :mod:`..calibrate.diagnostics`.
 """
 
 from __future__ import annotations
 
 import json
+import textwrap
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..calibrate.diagnostics import distortion_field, observed_field_mask, view_hulls
+from ..calibrate.diagnostics import distortion_field, grid_pixels, grid_shape, model_valid, view_hulls
 from ..calibrate.pipeline import CalibrationResult
+from ..calibrate.residual_stats import (
+    RADIAL_FLOOR_PX,
+    REGIONAL_FLOOR_PX,
+    ModelBias,
+    Radial,
+    Regional,
+    ResidualSamples,
+    model_bias,
+    radial,
+    regional,
+    views_per_region,
+)
 from ..detect.detection import Detection
 
 FIELD_MARGIN = 30.0  # px around the observed field where the distortion field is still drawn
+DISTORTION_STEP = 32  # px between arrows of the distortion field
+VALID_STEP = 8  # px between samples of the model's valid region
+MAX_PLOT_POINTS = 30_000  # residual scatter plots draw at most this many points (evenly thinned)
+WORST_VIEWS = 3
+MAGNIFY_WORST = 0.04  # the 99th percentile residual of a worst view is drawn this fraction of the image size
+
+PAGES = 7
+ImageSource = Callable[[str], "np.ndarray | None"]  # view name -> grey image (None: not at hand)
 
 
-def _normals(points: np.ndarray) -> np.ndarray:
-    """Outward normals of a closed edge sampled in order (from the centroid)."""
-    d = points - points.mean(0)
-    return d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
+@dataclass
+class ReportData:
+    """Everything the pages and the JSON show, computed once."""
+
+    res: CalibrationResult
+    dets: list[Detection]
+    used_names: list[str]  # names of the used views, in the order of res.edge_points
+    hulls: list[np.ndarray]
+    field: np.ndarray  # (h, w) bool: the observed field
+    samples: ResidualSamples
+    regional: Regional
+    radial: Radial
+    bias: ModelBias
+    views_per_region: np.ndarray
+    dist_uv: np.ndarray  # distortion field over the observed field + FIELD_MARGIN
+    dist_disp: np.ndarray
+    valid_grid: np.ndarray  # (rows, cols) bool on a VALID_STEP grid: the model holds there
+    view_rms: np.ndarray  # RMS of each used view's residual vectors (edges and corners)
+
+
+def report_data(res: CalibrationResult, dets: list[Detection]) -> ReportData:
+    """Compute the report's numbers for a calibration and its detections."""
+    w, h = res.width, res.height
+    cam = res.camera()
+    pts = res.feature_points()
+    field = res.observed_field()
+    s = res.residual_samples()
+    reg = regional(s, w, h)
+    rad = radial(s, (float(res.K[0, 2]), float(res.K[1, 2])))
+    uv, disp = distortion_field(cam, DISTORTION_STEP, mask=res.observed_field(FIELD_MARGIN))
+    valid = model_valid(cam, grid_pixels(w, h, VALID_STEP)).reshape(grid_shape(w, h, VALID_STEP))
+    n_views = len(pts)
+    sq = np.bincount(s.view, np.sum(s.vectors**2, 1), minlength=n_views)
+    cnt = np.bincount(s.view, minlength=n_views)
+    return ReportData(res, dets, [v.name for v in res.views if v.used][:n_views], view_hulls(pts), field, s, reg, rad,
+                      model_bias(reg, rad, w, h, res.model), views_per_region(pts, w, h, reg.grid), uv, disp, valid,
+                      np.sqrt(sq / np.maximum(cnt, 1)))
 
 
 def per_circle_rms(res: CalibrationResult) -> dict[str, float]:
     """RMS edge residual (px) of every circle over all used views, keyed by the circle's feature
     name (``ring/outer``, ``disc_grid[2,5]`` ...) or its index; worst first."""
-    if not res.edge_circles:
+    if not res.edge_circles or not sum(len(c) for c in res.edge_circles):
         return {}
     ids = np.concatenate(res.edge_circles).astype(int)
     r = np.concatenate(res.edge_residuals)
@@ -39,30 +107,83 @@ def per_circle_rms(res: CalibrationResult) -> dict[str, float]:
     return {names[c]: float(rms[c]) for c in np.argsort(-rms) if count[c]}
 
 
-def _observed_field(res: CalibrationResult, margin: float = 0.0) -> np.ndarray:
-    return observed_field_mask(res.edge_points, res.width, res.height, margin)
+def worst_views(d: ReportData, n: int = WORST_VIEWS) -> list[int]:
+    """Indices (into the used views) of the ``n`` views with the largest residual RMS."""
+    return [int(k) for k in np.argsort(-d.view_rms)[:n]]
 
 
-def report_numbers(res: CalibrationResult, dets: list[Detection]) -> dict[str, Any]:
-    cam = res.camera()
-    _, disp = distortion_field(cam, mask=_observed_field(res, FIELD_MARGIN))
-    mag = np.linalg.norm(disp, axis=1) if len(disp) else np.zeros(1)
-    covered = float(_observed_field(res).mean()) if res.edge_points else 0.0
+def _histogram(d: ReportData) -> dict[str, Any]:
+    """Histogram of the residuals (edge residuals along their normal, corner residual components)
+    and the counts a noise of each view's own RMS would give (a mixture of normals)."""
+    from scipy.stats import norm
+
+    res = d.res
+    parts = [(np.asarray(r, float), v) for v, r in enumerate(res.edge_residuals)]
+    parts += [(np.asarray(c, float).ravel(), v) for v, c in enumerate(res.corner_residuals)]
+    vals = np.concatenate([p for p, _ in parts]) if parts else np.zeros(0)
+    views = np.concatenate([np.full(len(p), v) for p, v in parts]) if parts else np.zeros(0, int)
+    # each view's noise: the RMS of its own values
+    sig_v = np.array([float(np.sqrt(np.mean(p * p))) if len(p) else 0.0 for p in
+                      [vals[views == v] for v in range(len(d.view_rms))]])
+    lim = float(np.percentile(np.abs(vals), 99.5)) if len(vals) else 1.0
+    edges = np.linspace(-lim, lim, 41)
+    counts = np.histogram(vals, edges)[0]
+    expected = np.zeros(len(edges) - 1)
+    for v, sg in enumerate(sig_v):
+        m = int(np.sum(views == v))
+        if m and sg > 0:
+            expected += m * np.diff(norm.cdf(edges / sg))
+    return {"edges_px": np.round(edges, 5).tolist(), "count": counts.tolist(),
+            "expected": np.round(expected, 2).tolist(), "expected_from": "each view's own RMS (normal noise)"}
+
+
+def report_numbers(d: ReportData) -> dict[str, Any]:
+    """``report.json``: every number the pages show (keys documented in the README)."""
+    res = d.res
+    w, h = res.width, res.height
+    mag = np.linalg.norm(d.dist_disp, axis=1) if len(d.dist_disp) else np.zeros(1)
+    rad = d.radial
+    ring_ok = rad.effective > 0
+    valid_px = np.repeat(np.repeat(d.valid_grid, VALID_STEP, 0), VALID_STEP, 1)[:h, :w]
     return {
-        "image": {"width": res.width, "height": res.height},
+        "image": {"width": w, "height": h},
         "method": res.method, "refined": res.refined, "distortion_model": res.model,
         "distortion_choice": res.distortion_model,
         "K": res.K.tolist(), "D": res.D.tolist(), "std": res.std,
         "rms_px": res.rms, "degeneracy_ratio": res.degeneracy_ratio, "warnings": res.warnings,
         "views": [{"name": v.name, "used": v.used, "reason": v.reason, "rms_px": v.rms, "edge_offset_px": v.edge_offset}
                   for v in res.views],
-        "residuals": {"per_view_rms_px": [float(np.sqrt(np.mean(r * r))) for r in res.edge_residuals],
-                      "per_circle_rms_px": per_circle_rms(res),
-                      "max_abs_px": float(max((np.max(np.abs(r)) for r in res.edge_residuals), default=0.0))},
-        "coverage": {"observed_fraction": covered, "image_fraction_inside_some_view": covered,
-                     "view_hulls": [np.round(h, 2).tolist() for h in view_hulls(res.edge_points)]},
-        "distortion_field": {"over": f"observed field + {FIELD_MARGIN:.0f} px", "max_px": float(mag.max()),
-                             "mean_px": float(mag.mean())},
+        "coverage": {"observed_fraction": float(d.field.mean()),
+                     "observed_field": "union over the used views of the convex hull of their feature points",
+                     "views_per_region": {"grid": list(d.regional.grid), "count": d.views_per_region.tolist()},
+                     "view_hulls": [np.round(x, 2).tolist() for x in d.hulls]},
+        "residuals": {
+            "convention": "observed minus predicted; edge residuals along the contour's outward normal",
+            "per_view_rms_px": [float(np.sqrt(np.mean(r * r))) if len(r) else float("nan")
+                                for r in res.edge_residuals],
+            "per_view_vector_rms_px": np.round(d.view_rms, 5).tolist(),
+            "worst_views": [d.used_names[k] for k in worst_views(d) if k < len(d.used_names)],
+            "per_circle_rms_px": per_circle_rms(res),
+            "max_abs_px": float(max((np.max(np.abs(r)) for r in res.edge_residuals if len(r)), default=0.0)),
+            "kappa": {"edges": float(d.samples.kappa[~d.samples.is_corner][0]) if (~d.samples.is_corner).any()
+                      else 1.0, "corners": float(d.samples.kappa[d.samples.is_corner][0])
+                      if d.samples.is_corner.any() else 1.0},
+            "regional": d.regional.as_json(),
+            "radial": {"ring_edges_px": np.round(rad.edges_px, 2).tolist(),
+                       "mean_px": [round(float(m), 5) if ok else None for m, ok in zip(rad.mean, ring_ok, strict=True)],
+                       "stderr_px": [round(float(x), 5) if ok else None for x, ok in zip(rad.stderr, ring_ok,
+                                                                                        strict=True)],
+                       "count": rad.count.tolist(), "about": "principal point"},
+            "histogram": _histogram(d),
+            "model_bias": d.bias.as_json()},
+        "distortion_field": {"over": f"observed field + {FIELD_MARGIN:.0f} px", "step_px": DISTORTION_STEP,
+                             "max_px": float(mag.max()), "mean_px": float(mag.mean()),
+                             "points": np.round(np.hstack([d.dist_uv, d.dist_disp]), 3).tolist()},
+        "lens_model": {"valid_fraction_of_image": float(d.valid_grid.mean()),
+                       "observed_field_inside_valid": float(valid_px[d.field].mean()) if d.field.any() else None,
+                       "max_angle_deg": float(np.degrees(res.camera().lens.max_angle(res.D))),
+                       "valid": "the model is invertible, projects back within 0.05 px and is monotonic in the "
+                                "radius"},
         "uncertainty": {"projection": res.projection_summary(),
                         "projection_over": "observed field, worst-direction sigma (mrcal's projection uncertainty)",
                         "std_model": "sandwich covariance, per-view noise, correlated edge residuals"},
@@ -71,98 +192,311 @@ def report_numbers(res: CalibrationResult, dets: list[Detection]) -> dict[str, A
     }
 
 
-def _wrapped(warnings: list[str], width: int = 70) -> list[str]:
-    """Every warning in full, wrapped to ``width`` characters."""
-    import textwrap
+# -- drawing -----------------------------------------------------------------------------
+def _frame(ax: Any, d: ReportData, field: bool = True, colour: str = "k") -> None:
+    """Image axes (y down) with the observed field dashed."""
+    w, h = d.res.width, d.res.height
+    if field and d.field.any():
+        _outline(ax, d.field, 2, colour, "--")
+    ax.set_xlim(0, w)
+    ax.set_ylim(h, 0)
+    ax.set_aspect("equal")
 
-    out = ["warnings:" if warnings else "no warnings"]
-    for x in warnings:
-        out += [*textwrap.wrap(x, width, initial_indent="- ", subsequent_indent="  "), ""]
-    return out
+
+def _outline(ax: Any, mask: np.ndarray, step: int, colour: str, style: str) -> None:
+    """The boundary of a (rows, cols) bool mask sampled every ``step`` px, in pixel coordinates."""
+    m = mask[::step, ::step] if mask.shape[0] > 2 * step else mask
+    ys = (np.arange(m.shape[0]) + 0.5) * mask.shape[0] / m.shape[0]
+    xs = (np.arange(m.shape[1]) + 0.5) * mask.shape[1] / m.shape[1]
+    ax.contour(xs, ys, m.astype(float), levels=[0.5], colors=colour, linewidths=1.0, linestyles=style)
 
 
-def write_report(res: CalibrationResult, dets: list[Detection], out_dir: str | Path) -> tuple[Path, Path]:
-    """Write ``report.png`` and ``report.json`` into ``out_dir``."""
+def _thin(n: int) -> np.ndarray:
+    return np.arange(0, n, max(1, int(np.ceil(n / MAX_PLOT_POINTS))))
+
+
+def panel_hulls(ax: Any, d: ReportData) -> None:
+    for k, hull in enumerate(d.hulls):
+        c = np.vstack([hull, hull[:1]])
+        ax.plot(c[:, 0], c[:, 1], "-", lw=0.8, color=f"C{k % 10}")
+    _frame(ax, d)
+    ax.set_title(f"coverage: each used view's outline; observed field (dashed) {100 * d.field.mean():.0f} % of the "
+                 "image", fontsize=9)
+
+
+def panel_views_per_region(ax: Any, fig: Any, d: ReportData) -> None:
+    w, h = d.res.width, d.res.height
+    im = ax.imshow(d.views_per_region, extent=(0, w, h, 0), cmap="Greens", vmin=0,
+                   vmax=max(int(d.views_per_region.max()), 1))
+    rows, cols = d.views_per_region.shape
+    for i in range(rows):
+        for j in range(cols):
+            ax.text((j + 0.5) * w / cols, (i + 0.5) * h / rows, str(d.views_per_region[i, j]), ha="center",
+                    va="center", fontsize=7)
+    fig.colorbar(im, ax=ax, label="views", fraction=0.035)
+    _frame(ax, d)
+    ax.set_title("views that observed each region", fontsize=9)
+
+
+def panel_magnitudes(ax: Any, fig: Any, d: ReportData) -> None:
+    s = d.samples
+    k = _thin(len(s.points))
+    mag = np.linalg.norm(s.vectors[k], axis=1)
+    sc = ax.scatter(s.points[k, 0], s.points[k, 1], c=mag, s=1, cmap="inferno_r", rasterized=True,
+                    vmax=float(np.percentile(mag, 99)) if len(mag) else None)
+    fig.colorbar(sc, ax=ax, label="|residual| (px)", fraction=0.035)
+    _frame(ax, d)
+    ax.set_title(f"residual magnitudes (RMS {d.res.rms:.3f} px)", fontsize=9)
+
+
+def panel_directions(ax: Any, d: ReportData) -> None:
+    s = d.samples
+    k = _thin(len(s.points))
+    ang = np.arctan2(s.vectors[k, 1], s.vectors[k, 0])
+    ax.scatter(s.points[k, 0], s.points[k, 1], c=ang, s=1, cmap="hsv", vmin=-np.pi, vmax=np.pi, rasterized=True)
+    _frame(ax, d)
+    ax.set_title("residual directions (colour = angle): noise looks speckled, a model bias forms clusters",
+                 fontsize=9)
+
+
+def _tidy(fig: Any) -> None:
+    """Fixed margins (matplotlib's tight layout measures every text and costs seconds)."""
+    fig.subplots_adjust(left=0.05, right=0.93, top=0.91, bottom=0.08, wspace=0.22, hspace=0.32)
+
+
+def panel_regional(ax: Any, d: ReportData, labels: bool = False) -> None:
+    reg, w, h = d.regional, d.res.width, d.res.height
+    rows, cols = reg.grid
+    cx = (np.arange(cols) + 0.5) * w / cols
+    cy = (np.arange(rows) + 0.5) * h / rows
+    X, Y = np.meshgrid(cx, cy)
+    mag = np.linalg.norm(reg.mean, axis=1)
+    scale = max(float(mag.max()), REGIONAL_FLOOR_PX) / (0.45 * min(w / cols, h / rows))
+    biased = np.zeros(len(mag), bool)
+    if d.bias.detected:
+        from scipy.stats import chi2
+
+        from ..calibrate.residual_stats import ALPHA, MIN_EFFECTIVE
+
+        tested = reg.effective >= MIN_EFFECTIVE
+        lim = chi2.isf(ALPHA / max(int(tested.sum()), 1), 2)
+        biased = tested & (reg.chi2 > lim) & (mag >= REGIONAL_FLOOR_PX)
+    colours = np.where(biased, "tab:red", "tab:blue")
+    ax.quiver(X.ravel(), Y.ravel(), reg.mean[:, 0], reg.mean[:, 1], color=list(colours), angles="xy",
+              scale_units="xy", scale=scale, width=0.004)
+    for k in range(len(mag) if labels else 0):
+        ax.text(X.ravel()[k], Y.ravel()[k] + 0.38 * h / rows, f"{mag[k]:.3f} ({reg.count[k]})", ha="center",
+                fontsize=5.5, color="0.3")
+    for x in np.arange(1, cols) * w / cols:
+        ax.axvline(x, color="0.85", lw=0.5)
+    for y in np.arange(1, rows) * h / rows:
+        ax.axhline(y, color="0.85", lw=0.5)
+    _frame(ax, d)
+    ax.set_title(f"mean residual per region, px (count); red: beyond noise and {REGIONAL_FLOOR_PX} px\n"
+                 f"arrow of one region = {0.45 * min(w / cols, h / rows) * scale:.3f} px", fontsize=9)
+
+
+def panel_radial(ax: Any, d: ReportData) -> None:
+    rad = d.radial
+    mid = 0.5 * (rad.edges_px[1:] + rad.edges_px[:-1])
+    ok = rad.count > 0
+    ax.errorbar(mid[ok], rad.mean[ok], yerr=2 * rad.stderr[ok], fmt="o-", capsize=3)
+    ax.axhline(0, color="k", lw=0.8)
+    for sgn in (-1, 1):
+        ax.axhline(sgn * RADIAL_FLOOR_PX, color="0.6", lw=0.8, ls=":")
+    ax.set_xlabel("distance from the principal point (px)")
+    ax.set_ylabel("mean radial residual (px), +-2 standard errors")
+    ax.set_title(f"radial residual (outwards +); dotted: {RADIAL_FLOOR_PX} px floor", fontsize=9)
+    ax.grid(alpha=0.3)
+
+
+def panel_histogram(ax: Any, d: ReportData, hist: dict[str, Any]) -> None:
+    e = np.asarray(hist["edges_px"])
+    mid = 0.5 * (e[1:] + e[:-1])
+    ax.bar(mid, hist["count"], width=np.diff(e), color="tab:blue", alpha=0.6, label="residuals")
+    ax.plot(mid, hist["expected"], "k-", lw=1.2, label="normal noise at each view's RMS")
+    ax.set_xlabel("residual (px)")
+    ax.set_yscale("log")
+    ax.legend(fontsize=8)
+    ax.set_title("residual histogram against the expected noise", fontsize=9)
+
+
+def panel_per_view(ax: Any, d: ReportData) -> None:
+    worst = set(worst_views(d))
+    ax.bar(range(len(d.view_rms)), d.view_rms,
+           color=["tab:red" if k in worst else "tab:blue" for k in range(len(d.view_rms))])
+    ax.set_xticks(range(len(d.view_rms)))
+    ax.set_xticklabels([n[-18:] for n in d.used_names], rotation=90, fontsize=6)
+    ax.set_ylabel("RMS (px)")
+    ax.set_title("residual RMS per used view (red: the worst, drawn on the next page)", fontsize=9)
+
+
+def panel_worst(ax: Any, d: ReportData, k: int, image: np.ndarray | None) -> None:
+    """One used view on its own image with its residuals magnified."""
+    res, s = d.res, d.samples
+    sel = s.view == k
+    if image is not None:
+        step = max(1, int(np.ceil(max(image.shape[:2]) / 1000)))  # at most ~1000 px embedded
+        ax.imshow(image[::step, ::step], cmap="gray", extent=(0, res.width, res.height, 0), rasterized=True)
+    p, v = s.points[sel], s.vectors[sel]
+    mag = float(np.percentile(np.linalg.norm(v, axis=1), 99)) if len(v) else 1.0
+    scale = MAGNIFY_WORST * max(res.width, res.height) / max(mag, 1e-6)
+    ax.plot(p[:, 0], p[:, 1], ",", color="c", rasterized=True)
+    t = _thin(len(p))
+    ax.quiver(p[t, 0], p[t, 1], v[t, 0] * scale, v[t, 1] * scale, color="r", angles="xy", scale_units="xy", scale=1,
+              width=0.0015, rasterized=True)
+    _frame(ax, d, field=False)
+    name = d.used_names[k] if k < len(d.used_names) else str(k)
+    ax.set_title(f"{name}: RMS {d.view_rms[k]:.3f} px, residuals x{scale:.0f}"
+                 + ("" if image is not None else " (image not at hand)"), fontsize=9)
+
+
+def panel_distortion(ax: Any, fig: Any, d: ReportData) -> None:
+    res = d.res
+    uv, disp = (d.dist_uv, d.dist_disp) if len(d.dist_uv) else (np.zeros((1, 2)), np.zeros((1, 2)))
+    mag = np.linalg.norm(disp, axis=1)
+    arrow = max(float(mag.max()) / (0.9 * DISTORTION_STEP), 1e-9)  # the longest arrow spans 0.9 grid steps
+    q = ax.quiver(uv[:, 0], uv[:, 1], disp[:, 0], disp[:, 1], mag, angles="xy", scale_units="xy", scale=arrow,
+                  cmap="viridis")
+    fig.colorbar(q, ax=ax, label="displacement (px)", fraction=0.035)
+    if not d.valid_grid.all():
+        v = d.valid_grid
+        ys, xs = (np.arange(v.shape[0]) + 0.5) * VALID_STEP, (np.arange(v.shape[1]) + 0.5) * VALID_STEP
+        ax.contourf(xs, ys, (~v).astype(float), levels=[0.5, 1.5], colors="none", hatches=["///"])
+        ax.contour(xs, ys, v.astype(float), levels=[0.5], colors="r", linewidths=1.0)
+    ax.plot(res.K[0, 2], res.K[1, 2], "r+", ms=12)
+    _frame(ax, d)
+    invalid = 100 * (1 - d.valid_grid.mean())
+    ax.set_title(f"{res.model} distortion (max {mag.max():.1f} px, arrows x{1 / arrow:.2g}) over the observed "
+                 f"field + {FIELD_MARGIN:.0f} px\n"
+                 + (f"hatched: the model does not hold ({invalid:.1f} % of the image)" if invalid > 0
+                    else "the model holds over the whole image") + "; + principal point", fontsize=9)
+
+
+def panel_projection(ax: Any, fig: Any, d: ReportData) -> None:
+    res = d.res
+    pu = res.projection
+    if pu is not None:
+        sig = pu.sigma.reshape(pu.grid_shape)
+        im = ax.imshow(sig, extent=(0, res.width, res.height, 0), cmap="magma",
+                       vmax=float(np.nanpercentile(sig, 95)) if np.isfinite(sig).any() else None)
+        fig.colorbar(im, ax=ax, label="projection sigma (px)", fraction=0.035)
+        ax.set_title(res.projection_line().replace(" in the observed", "\nin the observed"), fontsize=9)
+    else:
+        ax.set_title("projection uncertainty: not available (no refinement)", fontsize=9)
+    _frame(ax, d, colour="c")
+
+
+def summary_lines(d: ReportData, width: int = 88) -> list[str]:
+    """The summary page's text: parameters, views, uncertainty, the verdict, every warning."""
+    res = d.res
+    names = ["fx", "fy", "cx", "cy", *res.camera().lens.coefficients]
+    vals = [res.K[0, 0], res.K[1, 1], res.K[0, 2], res.K[1, 2], *res.D]
+    lines = [f"{res.width}x{res.height}, {res.model}; method {res.method}{' + refinement' if res.refined else ''}; "
+             f"{res.n_used}/{len(res.views)} views used",
+             f"edge RMS {res.rms:.4f} px; degeneracy ratio {res.degeneracy_ratio:.3f}",
+             res.projection_line(),
+             f"observed field: {100 * d.field.mean():.0f} % of the image", ""]
+    lines += [f"{n:>3} = {v:12.5f}  +- {res.std.get(n, float('nan')):.5f}" for n, v in zip(names, vals, strict=True)]
+    lines.append("")
+    b = d.bias
+    if b.detected:
+        lines += textwrap.wrap("MODEL BIAS: " + b.hint, width)
+    else:
+        lines += textwrap.wrap(f"model fits: no residual pattern beyond the noise (largest regional mean "
+                               f"{b.max_regional_px:.3f} px; floors {REGIONAL_FLOOR_PX} px regional, "
+                               f"{RADIAL_FLOOR_PX} px radial)", width)
+    lines.append("")
+    rejected = [v for v in res.views if not v.used]
+    if rejected:
+        lines.append(f"rejected views ({len(rejected)}):")
+        lines += [f"  {v.name}: {v.reason}"[:width] for v in rejected[:12]]
+        lines.append("")
+    lines += ["warnings:" if res.warnings else "no warnings"]
+    for x in res.warnings:
+        lines += textwrap.wrap(x, width, initial_indent="- ", subsequent_indent="  ")
+    return lines
+
+
+def _text(ax: Any, lines: list[str], fontsize: float = 8.5) -> None:
+    ax.axis("off")
+    ax.text(0, 1, "\n".join(lines), va="top", family="monospace", fontsize=fontsize)
+
+
+@dataclass
+class ReportFiles:
+    png: Path
+    json: Path
+    pdf: Path
+    model_bias: ModelBias
+
+
+def write_report(res: CalibrationResult, dets: list[Detection], out_dir: str | Path,
+                 images: ImageSource | None = None, page_images: bool = False) -> ReportFiles:
+    """Write ``report.pdf`` (:data:`PAGES` pages), ``report.png`` and ``report.json`` into
+    ``out_dir``; ``images`` gives a view's image by name for the worst-views page; with
+    ``page_images`` each page is also written as ``report_page_N.png`` (the README's figures)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_pdf import PdfPages
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    numbers = report_numbers(res, dets)
+    d = report_data(res, dets)
+    numbers = report_numbers(d)
     (out / "report.json").write_text(json.dumps(numbers, indent=1, default=float))
 
+    page_no = 0
+
+    def save(fig: Any, pdf: Any) -> None:
+        nonlocal page_no
+        page_no += 1
+        _tidy(fig)
+        pdf.savefig(fig)
+        if page_images:
+            fig.savefig(out / f"report_page_{page_no}.png", dpi=60)
+        plt.close(fig)
+
+    with PdfPages(out / "report.pdf") as pdf:
+        fig, ax = plt.subplots(1, 2, figsize=(16, 9), gridspec_kw={"width_ratios": [1.25, 1]})
+        _text(ax[0], ["pascal_calib_ros calibration report", "", *summary_lines(d)])
+        panel_regional(ax[1], d)
+        save(fig, pdf)
+        fig, ax = plt.subplots(1, 2, figsize=(16, 7))
+        panel_hulls(ax[0], d)
+        panel_views_per_region(ax[1], fig, d)
+        save(fig, pdf)
+        fig, ax = plt.subplots(1, 2, figsize=(16, 7))
+        panel_magnitudes(ax[0], fig, d)
+        panel_directions(ax[1], d)
+        save(fig, pdf)
+        fig, ax = plt.subplots(2, 2, figsize=(16, 10))
+        panel_regional(ax[0][0], d, labels=True)
+        panel_radial(ax[0][1], d)
+        panel_histogram(ax[1][0], d, numbers["residuals"]["histogram"])
+        panel_per_view(ax[1][1], d)
+        save(fig, pdf)
+        worst = worst_views(d)
+        fig, ax = plt.subplots(1, max(len(worst), 1), figsize=(18, 6), squeeze=False)
+        for a, k in zip(ax[0], worst, strict=False):
+            name = d.used_names[k] if k < len(d.used_names) else ""
+            panel_worst(a, d, k, images(name) if images is not None and name else None)
+        save(fig, pdf)
+        for panel in (panel_distortion, panel_projection):
+            fig, a1 = plt.subplots(1, 1, figsize=(12, 8))
+            panel(a1, fig, d)
+            save(fig, pdf)
+
     fig, ax = plt.subplots(2, 3, figsize=(20, 11))
-    w, h = res.width, res.height
-    # residuals
-    a = ax[0][0]
-    scale = 0.05 * max(w, h) / max(max((np.max(np.abs(r)) for r in res.edge_residuals), default=1e-3), 1e-3)
-    for k, (p, r) in enumerate(zip(res.edge_points, res.edge_residuals, strict=True)):
-        n = _normals(p)
-        a.plot(p[:, 0], p[:, 1], ",", color=f"C{k % 10}")
-        a.quiver(p[::2, 0], p[::2, 1], (n[::2, 0] * r[::2]) * scale, (n[::2, 1] * r[::2]) * scale, angles="xy",
-                 scale_units="xy", scale=1, width=0.0015, color=f"C{k % 10}")
-    a.set_title(f"edge residuals x{scale:.0f} (RMS {res.rms:.3f} px; max {numbers['residuals']['max_abs_px']:.3f} px)")
-    # coverage
-    b = ax[0][1]
-    for k, d in enumerate(x for x in dets if x.ok):
-        for e in d.edges:
-            b.plot(*np.vstack([e.points, e.points[:1]]).T, "-", lw=0.8, color=f"C{k % 10}")
-    field = _observed_field(res)
-    if field.any():
-        for axx in (b, ax[1][0]):
-            axx.contour(field.astype(float), levels=[0.5], colors="k", linewidths=1.0, linestyles="--")
-    b.set_title(f"coverage: {100 * numbers['coverage']['observed_fraction']:.0f} % of the image "
-                f"in the observed field (dashed; {res.n_used} views)")
-    # distortion field, over the observed field only (a fold outside it must not set the scale)
-    c = ax[1][0]
-    uv, disp = distortion_field(res.camera(), mask=_observed_field(res, FIELD_MARGIN))
-    if not len(uv):
-        uv, disp = np.zeros((1, 2)), np.zeros((1, 2))
-    mag = np.linalg.norm(disp, axis=1)
-    arrow = max(float(mag.max()) / 28.0, 1e-9)  # the longest arrow spans about one grid step
-    q = c.quiver(uv[:, 0], uv[:, 1], disp[:, 0], disp[:, 1], mag, angles="xy", scale_units="xy", scale=arrow,
-                 cmap="viridis")
-    fig.colorbar(q, ax=c, label="displacement (px)")
-    c.plot(res.K[0, 2], res.K[1, 2], "r+", ms=15)
-    c.set_title(f"{res.model} distortion against its ideal lens, observed field\n"
-                f"(arrows x{1 / arrow:.2g}; max {mag.max():.1f} px); + principal point", fontsize=10)
-    for axx in (a, b, c):
-        axx.set_xlim(0, w)
-        axx.set_ylim(h, 0)
-        axx.set_aspect("equal")
-    # projection uncertainty, observed field dashed
-    e = ax[1][1]
-    pu = res.projection
-    if pu is not None:
-        im = e.imshow(pu.sigma.reshape(pu.grid_shape), extent=(0, w, h, 0), cmap="magma",
-                      vmax=float(np.nanpercentile(pu.sigma, 95)) if np.isfinite(pu.sigma).any() else None)
-        fig.colorbar(im, ax=e, label="projection sigma (px)")
-        if field.any():
-            e.contour(field.astype(float), levels=[0.5], colors="c", linewidths=1.0, linestyles="--")
-        e.set_title(f"{res.projection_line()}".replace(" in the observed", "\nin the observed"), fontsize=10)
-    else:
-        e.set_title("projection uncertainty: not available")
-    e.set_xlim(0, w)
-    e.set_ylim(h, 0)
-    e.set_aspect("equal")
-    ax[0][2].axis("off")
-    # parameters
-    d_ax = ax[1][2]
-    d_ax.axis("off")
-    names = ["fx", "fy", "cx", "cy", *res.camera().lens.coefficients]
-    vals = [res.K[0, 0], res.K[1, 1], res.K[0, 2], res.K[1, 2], *res.D]
-    lines = [f"method {res.method}{' + refinement' if res.refined else ''}, {res.n_used}/{len(res.views)} views",
-             f"RMS {res.rms:.4f} px, degeneracy ratio {res.degeneracy_ratio:.3f}", ""]
-    lines += [f"{n:>3} = {v:12.5f}  +- {res.std.get(n, float('nan')):.5f}" for n, v in zip(names, vals, strict=True)]
-    if res.shape_std:
-        lines += ["target shape: " + ", ".join(f"{n} {res.shape[n]:+.2e}" for n in res.shape_std)]
-    lines += [""] + [f"{v.name}: {f'used, rms {v.rms:.3f} px' if v.used else 'rejected: ' + v.reason}"[:70]
-                     for v in res.views[:18]]
-    d_ax.text(0, 1, "\n".join(lines), va="top", family="monospace", fontsize=9)
-    ax[0][2].text(0, 1, "\n".join(_wrapped(res.warnings)), va="top", fontsize=9)
-    fig.tight_layout()
+    panel_directions(ax[0][0], d)
+    panel_views_per_region(ax[0][1], fig, d)
+    panel_regional(ax[0][2], d)
+    panel_distortion(ax[1][0], fig, d)
+    panel_projection(ax[1][1], fig, d)
+    _text(ax[1][2], summary_lines(d, 62), fontsize=8)
+    _tidy(fig)
     fig.savefig(out / "report.png", dpi=80)
     plt.close(fig)
-    return out / "report.png", out / "report.json"
+    return ReportFiles(out / "report.png", out / "report.json", out / "report.pdf", d.bias)

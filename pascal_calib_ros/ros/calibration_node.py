@@ -3,7 +3,8 @@
 Subscribes ``image`` (sensor_msgs/Image) or ``image/compressed`` (``transport:=compressed``),
 detects the target in a worker thread (only the newest frame waits; older ones are dropped and
 counted), keeps the features of views that add diversity, reports progress on ``~/status``
-(diagnostic_msgs/DiagnosticArray), draws detections on ``~/detections`` while someone listens,
+(diagnostic_msgs/DiagnosticArray), draws the live view on ``~/detections`` while someone listens
+(the detection, the stored views' footprints, the coverage bars: :mod:`..calibrate.live_overlay`),
 acknowledges every frame the detector has examined on ``~/examined_frames`` (std_msgs/Header,
 the frame's own header; ``replay_node``'s lock-step mode waits for it), and offers
 ``~/calibrate``, ``~/reset`` and ``~/commit`` (std_srvs/Trigger). A good result is published on
@@ -54,6 +55,8 @@ from ..calibrate.arm_session import (
 )
 from ..calibrate.collector import ViewCollector
 from ..calibrate.cross_validation import cross_validate
+from ..calibrate.diagnostics import view_hulls
+from ..calibrate.live_overlay import draw_live_overlay, feature_points
 from ..calibrate.pipeline import METHODS, CalibrationError, CalibrationOptions, CalibrationResult, calibrate
 from ..calibrate.refine import DISTORTION_MODELS, SHAPE_CHOICES
 from ..detect.detection import Detection, DetectionParams
@@ -64,6 +67,7 @@ from ..geometry.lens import lens_model
 from ..geometry.transform import Transform, TransformError
 from ..io.camera_yaml import CameraInfoData, write_camera_yaml
 from ..io.image_msgs import ImageConversionError, compressed_to_grey, grey_to_image_fields, image_to_grey
+from ..io.images import read_grey
 from ..targets import Target, TargetError, resolve_target
 from .conversions import camera_info_msg
 
@@ -127,6 +131,9 @@ PARAMS = (
           choices=("", "eye_in_hand", "eye_to_hand")),
 )
 READ_ONLY = {"transport", "robot_pose_topic"}
+# a frame waits at most this long (wall time, or pose_max_age if longer) for the robot pose published
+# for its stamp: the pose comes on another topic and may be late on a loaded machine
+POSE_ARRIVAL_WAIT_S = 1.0
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 TRANSFORM_STAMPED = "geometry_msgs/msg/TransformStamped"
 MOTION_AUTO_PX = 0.5
@@ -152,6 +159,9 @@ class CalibrationNode(Node):
 
         self.lock = threading.Lock()
         self.collector = ViewCollector(self.p("min_views"), self.p("max_views"), self.p("min_view_distance"))
+        # outlines (convex hulls of the feature points) of the stored views for ~/detections;
+        # computed once per stored view, guarded by self.lock with the collector
+        self.footprints: list[np.ndarray] = []
         self.result: CalibrationResult | None = None
         self.result_msg: CameraInfo | None = None
         self.frames_received = 0
@@ -284,6 +294,7 @@ class CalibrationNode(Node):
             if "target" in values:
                 self.target = resolve_target(str(values["target"]))
                 self.collector.clear()
+                self.footprints.clear()
             if "min_views" in values:
                 self.collector.min_views = int(values["min_views"])
             if "max_views" in values:
@@ -376,11 +387,13 @@ class CalibrationNode(Node):
         det = detect_target(img, target, params, name=f"frame_{self.frames_received:06d}")
         stamp_ns = int(msg.header.stamp.sec) * 10**9 + int(msg.header.stamp.nanosec)
         if self.poses is not None:  # the pose for this stamp may still be on its way (another topic)
-            self.poses.wait_until_covers(stamp_ns, float(self.p("pose_max_age")))
+            self.poses.wait_until_covers(stamp_ns, max(float(self.p("pose_max_age")), POSE_ARRIVAL_WAIT_S))
         verdict = self.gate.examine(det, stamp_ns, self.poses, float(self.p("pose_max_age")))
         capture = self.captures.for_frame(received_at)
         answer: tuple[bool, str] | None = None
         accepted = False
+        why = verdict.reason or ("ok" if det.ok else det.reason)  # the frame's verdict on ~/detections
+        drawing = self.pub_det.get_subscription_count() > 0
         with self.lock:
             if capture is not None:
                 if capture_is_final(verdict, self.poses is not None):
@@ -390,42 +403,39 @@ class CalibrationNode(Node):
                         accepted, why = self.collector._reject(verdict.reason)
                     answer = (accepted, stored_message(len(self.collector.views) - 1, det, verdict.robot_pose)
                               if accepted else f"nothing stored: {why}")
+                    why = answer[1]
                 else:
                     self.collector._reject(verdict.reason)
                     self.captures.note(capture, verdict.reason)
             elif self.p("collect") == "auto":
                 if verdict.usable:
-                    accepted, _ = self.collector.offer(det, verdict.robot_pose)
+                    accepted, why = self.collector.offer(det, verdict.robot_pose)
+                    why = f"view {len(self.collector.views) - 1} stored" if accepted else f"ok; not stored: {why}"
                 else:
                     self.collector._reject(verdict.reason)
+            elif verdict.usable:
+                why = "ok; ~/capture stores a view (collect:=on_capture)"
+            if accepted:  # only stored views cost a hull
+                self.footprints.extend(view_hulls([feature_points(det)]))
             n = len(self.collector.views)
             ready = self.collector.ready
+            overlay = (list(self.footprints), self.collector.coverage(), self.collector.min_views) if drawing else None
         if capture is not None and answer is not None:
             self.captures.finish(capture, *answer)
         if accepted and self.p("output_dir"):
             out = Path(self.p("output_dir")) / "frames"
             out.mkdir(parents=True, exist_ok=True)
-            cv2.imwrite(str(out / f"view_{n - 1:03d}.png"), img)
-        if self.pub_det.get_subscription_count() > 0:
-            self._publish_detection(img, det, msg.header)
+            cv2.imwrite(str(out / f"{det.name}.png"), img)  # the report's worst views are read back by name
+        if overlay is not None:
+            footprints, coverage, min_views = overlay
+            vis = draw_live_overlay(img, det, footprints, coverage, n, min_views, ready, why,
+                                    verdict_ok=verdict.usable and (accepted or capture is None))
+            self.pub_det.publish(Image(header=msg.header, **grey_to_image_fields(vis)))
         if accepted:
             self.publish_status()
         if ready and self.p("auto_calibrate") and self.auto_done_at != n and not self.calibrating.locked():
             self.auto_done_at = n
             threading.Thread(target=self.run_calibration, name="auto-calibrate", daemon=True).start()
-
-    def _publish_detection(self, img: np.ndarray, det: Detection, header: Any) -> None:
-        vis = cv2.cvtColor(cv2.convertScaleAbs(img, alpha=255.0 / 65535) if img.dtype == np.uint16 else img,
-                           cv2.COLOR_GRAY2BGR)
-        colour = (0, 200, 0) if det.ok else (0, 0, 255)
-        for e in det.edges:
-            cv2.polylines(vis, [np.round(e.points).astype(np.int32).reshape(-1, 1, 2)], True, colour, 1)
-        if det.corners is not None:
-            for x, y in det.corners:
-                cv2.circle(vis, (round(x), round(y)), 3, (255, 128, 0), 1)
-        cv2.putText(vis, "ok" if det.ok else det.reason[:60], (10, 25), cv2.FONT_HERSHEY_SIMPLEX, 0.6, colour, 2)
-        out = Image(header=header, **grey_to_image_fields(vis))
-        self.pub_det.publish(out)
 
     # -- status -------------------------------------------------------------------------
     def session_frames(self) -> tuple[int, int]:
@@ -664,7 +674,9 @@ class CalibrationNode(Node):
             try:
                 from ..io.report import write_report
 
-                write_report(res, views, out_dir)
+                frames = Path(out_dir) / "frames"
+                write_report(res, views, out_dir, images=lambda name: read_grey(frames / f"{name}.png")
+                             if (frames / f"{name}.png").exists() else None)
             except Exception as e:  # a report must never cost the calibration
                 self.get_logger().warn(f"report not written: {type(e).__name__}: {e}")
         return path
@@ -751,6 +763,7 @@ class CalibrationNode(Node):
     def _srv_reset(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
         with self.lock:
             n = self.collector.clear()
+            self.footprints.clear()
             self.auto_done_at = -1
         with self._pending_cv:
             self._session_start = (self.frames_received, self.frames_dropped)
