@@ -4,7 +4,7 @@
 Reads a folder in the layout of the CIVIT / Tampere University robot-world hand-eye datasets
 (Ali, Suominen, Gotchev, Morales, "Methods for Simultaneous Robot-World-Hand-Eye Calibration: A
 Comparative Study", Sensors 19(12) 2837, 2019; https://github.com/ihtishamaliktk/RWHE-Calib,
-Datasets/kuka_1 .. kuka_3; open-access data, cite the paper): ``NN.png`` (NN = 01, 02, ...),
+Datasets/kuka_1 .. kuka_3; open-access data, cite the paper): ``NN.png`` or ``im_NN.bmp`` (NN = 01, 02, ...),
 ``RobotPosesVec.txt`` (one row-major 4x4 T_base_gripper per line, metres) and ``squaresize.txt``
 (e.g. ``20mm``). The camera rides on the arm (eye in hand). Nothing of the dataset is stored in
 this repository.
@@ -49,7 +49,9 @@ def read_dataset(folder: Path) -> tuple[list[Path], list[Transform], float]:
     if not m:
         raise SystemExit("squaresize.txt: expected e.g. '20mm'")
     size = float(m.group(1)) * {"mm": 1e-3, "cm": 1e-2, "m": 1.0, None: 1.0}[m.group(2)]
-    images = [folder / f"{k + 1:02d}.png" for k in range(len(poses))]
+    # kuka_1 names its images NN.png, kuka_2 im_NN.bmp
+    images = [next((q for q in (folder / f"{k + 1:02d}.png", folder / f"im_{k + 1:02d}.bmp") if q.exists()),
+                   folder / f"{k + 1:02d}.png") for k in range(len(poses))]
     return images, [Transform.from_rt(P[:3, :3], P[:3, 3]) for P in poses], size
 
 
@@ -92,7 +94,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("folder", type=Path)
     ap.add_argument("--out", type=Path, default=Path("handeye_real"))
     ap.add_argument("--inner", type=int, nargs=2, default=(28, 17), metavar=("NX", "NY"),
-                    help="inner corners along x and y (kuka_1..3: 28 17)")
+                    help="inner corners along x and y (kuka_1: 28 17, kuka_2: 24 17)")
     ap.add_argument("--opencv4-python", default="")
     ap.add_argument("--max-views", type=int, default=0, help="use only the first N views (0: all)")
     a = ap.parse_args(argv)

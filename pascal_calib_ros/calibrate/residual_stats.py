@@ -23,7 +23,7 @@ Reference: Kogan, mrcal documentation, "Interpreting the results" (residuals, re
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -194,6 +194,7 @@ class ModelBias:
     regional_significant: int  # cells beyond both the noise and the floor
     radial_significant: int
     hint: str
+    biased_regions: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))  # per region: beyond both
 
     def as_json(self) -> dict[str, Any]:
         return {"detected": self.detected, "radial_px": [round(x, 5) for x in self.radial_px],
@@ -203,7 +204,7 @@ class ModelBias:
                 "test": f"family-wise false-alarm probability {ALPHA:g} (Bonferroni); floors "
                         f"{REGIONAL_FLOOR_PX} px regional, {RADIAL_FLOOR_PX} px radial; noise from the "
                         "effective sample size (edge correlation)",
-                "hint": self.hint}
+                "hint": self.hint, "biased_regions": np.asarray(self.biased_regions, bool).tolist()}
 
 
 def model_bias(reg: Regional, rad: Radial, width: int, height: int, model: str) -> ModelBias:
@@ -239,10 +240,10 @@ def model_bias(reg: Regional, rad: Radial, width: int, height: int, model: str) 
                          f"{float(mag[bad_cells].max()):.3f} px near ({at[0]:.0f}, {at[1]:.0f}))")
         hint = (f"the residuals are not noise: {' and '.join(where)}. The {model} model may not describe this "
                 f"lens{': try ' + richer if richer else ''}; or the sheet may not be flat: try --target-shape; if "
-                f"neither removes it, some circles' edges are measured with a bias (the worst circles are listed; "
-                f"on a grid often the outer ones next to the sheet's edge)")
+                f"neither removes it, some features are measured with a bias (circles: the worst are listed; on a "
+                f"grid often the outer ones next to the sheet's edge)")
     return ModelBias(detected, radial_px, float(tested_mag.max()) if len(tested_mag) else 0.0, at,
-                     int(bad_cells.sum()), int(bad_rings.sum()), hint)
+                     int(bad_cells.sum()), int(bad_rings.sum()), hint, bad_cells)
 
 
 def views_per_region(points_per_view: list[np.ndarray], width: int, height: int,

@@ -31,6 +31,7 @@ import numpy as np
 from ..calibrate.diagnostics import distortion_field, grid_pixels, grid_shape, model_valid, view_hulls
 from ..calibrate.pipeline import CalibrationResult
 from ..calibrate.residual_stats import (
+    MIN_EFFECTIVE,
     RADIAL_FLOOR_PX,
     REGIONAL_FLOOR_PX,
     ModelBias,
@@ -85,6 +86,8 @@ def report_data(res: CalibrationResult, dets: list[Detection]) -> ReportData:
     reg = regional(s, w, h)
     rad = radial(s, (float(res.K[0, 2]), float(res.K[1, 2])))
     uv, disp = distortion_field(cam, DISTORTION_STEP, mask=res.observed_field(FIELD_MARGIN))
+    held = model_valid(cam, uv)  # a fold inside the margin must not set the colour scale either
+    uv, disp = uv[held], disp[held]
     valid = model_valid(cam, grid_pixels(w, h, VALID_STEP)).reshape(grid_shape(w, h, VALID_STEP))
     n_views = len(pts)
     sq = np.bincount(s.view, np.sum(s.vectors**2, 1), minlength=n_views)
@@ -271,17 +274,10 @@ def panel_regional(ax: Any, d: ReportData, labels: bool = False) -> None:
     cy = (np.arange(rows) + 0.5) * h / rows
     X, Y = np.meshgrid(cx, cy)
     mag = np.linalg.norm(reg.mean, axis=1)
-    scale = max(float(mag.max()), REGIONAL_FLOOR_PX) / (0.45 * min(w / cols, h / rows))
-    biased = np.zeros(len(mag), bool)
-    if d.bias.detected:
-        from scipy.stats import chi2
-
-        from ..calibrate.residual_stats import ALPHA, MIN_EFFECTIVE
-
-        tested = reg.effective >= MIN_EFFECTIVE
-        lim = chi2.isf(ALPHA / max(int(tested.sum()), 1), 2)
-        biased = tested & (reg.chi2 > lim) & (mag >= REGIONAL_FLOOR_PX)
-    colours = np.where(biased, "tab:red", "tab:blue")
+    tested = reg.effective >= MIN_EFFECTIVE  # regions with too few samples are drawn grey, not scaled
+    scale = max(float(mag[tested].max(initial=0.0)), REGIONAL_FLOOR_PX) / (0.45 * min(w / cols, h / rows))
+    biased = d.bias.biased_regions if len(d.bias.biased_regions) == len(mag) else np.zeros(len(mag), bool)
+    colours = np.where(biased, "tab:red", np.where(tested, "tab:blue", "0.7"))
     ax.quiver(X.ravel(), Y.ravel(), reg.mean[:, 0], reg.mean[:, 1], color=list(colours), angles="xy",
               scale_units="xy", scale=scale, width=0.004)
     for k in range(len(mag) if labels else 0):
@@ -292,7 +288,8 @@ def panel_regional(ax: Any, d: ReportData, labels: bool = False) -> None:
     for y in np.arange(1, rows) * h / rows:
         ax.axhline(y, color="0.85", lw=0.5)
     _frame(ax, d)
-    ax.set_title(f"mean residual per region, px (count); red: beyond noise and {REGIONAL_FLOOR_PX} px\n"
+    ax.set_title(f"mean residual per region, px (count); red: beyond noise and {REGIONAL_FLOOR_PX} px; grey: "
+                 f"too few samples\n"
                  f"arrow of one region = {0.45 * min(w / cols, h / rows) * scale:.3f} px", fontsize=9)
 
 
@@ -345,7 +342,7 @@ def panel_worst(ax: Any, d: ReportData, k: int, image: np.ndarray | None) -> Non
     t = _thin(len(p))
     ax.quiver(p[t, 0], p[t, 1], v[t, 0] * scale, v[t, 1] * scale, color="r", angles="xy", scale_units="xy", scale=1,
               width=0.0015, rasterized=True)
-    _frame(ax, d, field=False)
+    _frame(ax, d, colour="y")
     name = d.used_names[k] if k < len(d.used_names) else str(k)
     ax.set_title(f"{name}: RMS {d.view_rms[k]:.3f} px, residuals x{scale:.0f}"
                  + ("" if image is not None else " (image not at hand)"), fontsize=9)
@@ -412,8 +409,9 @@ def summary_lines(d: ReportData, width: int = 88) -> list[str]:
         lines.append(f"rejected views ({len(rejected)}):")
         lines += [f"  {v.name}: {v.reason}"[:width] for v in rejected[:12]]
         lines.append("")
-    lines += ["warnings:" if res.warnings else "no warnings"]
-    for x in res.warnings:
+    others = [x for x in res.warnings if x != b.hint]  # the verdict is said above
+    lines += ["warnings:" if others else "no other warnings"]
+    for x in others:
         lines += textwrap.wrap(x, width, initial_indent="- ", subsequent_indent="  ")
     return lines
 
