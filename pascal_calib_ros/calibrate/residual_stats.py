@@ -240,8 +240,7 @@ def model_bias(reg: Regional, rad: Radial, width: int, height: int, model: str) 
                          f"{float(mag[bad_cells].max()):.3f} px near ({at[0]:.0f}, {at[1]:.0f}))")
         hint = (f"the residuals are not noise: {' and '.join(where)}. The {model} model may not describe this "
                 f"lens{': try ' + richer if richer else ''}; or the sheet may not be flat: try --target-shape; if "
-                f"neither removes it, some features are measured with a bias (circles: the worst are listed; on a "
-                f"grid often the outer ones next to the sheet's edge)")
+                f"neither removes it, some features are measured with a bias (the worst circles are listed)")
     return ModelBias(detected, radial_px, float(tested_mag.max()) if len(tested_mag) else 0.0, at,
                      int(bad_cells.sum()), int(bad_rings.sum()), hint, bad_cells)
 
