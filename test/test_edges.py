@@ -60,3 +60,51 @@ def test_edge_near_border_is_refused() -> None:
         assert "border" in str(e)
     else:
         raise AssertionError("an edge at the border must be refused")
+
+
+def _disc_next_to_a_border(gap: float, r: float = 12.0, blur: float = 1.0) -> np.ndarray:
+    """A dark disc (radius r, centre (60, 60)) on paper, the paper ending ``gap`` px right of the
+    disc in a darker background (a sheet's border); blurred (Gaussian, sigma ``blur``)."""
+    import cv2
+
+    s = 8  # supersampled, then averaged: an antialiased render
+    y, x = (np.mgrid[0:120 * s, 0:120 * s] + 0.5) / s - 0.5  # pixel centres at integers
+    img = np.full(x.shape, 210.0)
+    img[x > 60 + r + gap] = 70.0
+    img[(x - 60) ** 2 + (y - 60) ** 2 < r * r] = 40.0
+    img = img.reshape(120, s, 120, s).mean((1, 3))
+    return cv2.GaussianBlur(img.astype(np.float32), (0, 0), blur)
+
+
+def test_a_second_edge_beyond_the_window_is_not_measured_as_the_disc() -> None:
+    from pascal_calib_ros.detect.edges import refine_edges_batch, turns_back
+
+    r = 12.0
+    conic = np.array([[1, 0, -60], [0, 1, -60], [-60, -60, 2 * 60**2 - r * r]], float)
+    hw = np.array([0.45 * r])
+    img = _disc_next_to_a_border(gap=5.0, r=r)
+    plain = refine_edges_batch(img, [conic], hw)[0]
+    looked = refine_edges_batch(img, [conic], hw, look_outside=np.array([True]))[0]
+    assert plain is not None and looked is not None
+    err = {}
+    for name, fit in (("plain", plain), ("looked", looked)):
+        d = np.hypot(fit.points[:, 0] - 60, fit.points[:, 1] - 60) - r
+        right = fit.points[:, 0] > 60 + 0.7 * r
+        err[name] = float(np.mean(d[right])) if right.any() else None
+    # without the check, the border's blurred step pulls the right-hand edge points inwards
+    assert err["plain"] is not None and err["plain"] < -0.05  # measured -0.10 px
+    # with it, those profiles are not used, the rest of the disc is measured as before
+    assert err["looked"] is None or abs(err["looked"]) < 0.02
+    assert len(looked.points) >= 0.6 * len(plain.points)
+    d_all = np.hypot(looked.points[:, 0] - 60, looked.points[:, 1] - 60) - r
+    assert abs(float(np.median(d_all))) < 0.05
+    # no border: nothing is dropped
+    free = _disc_next_to_a_border(gap=40.0, r=r)
+    a = refine_edges_batch(free, [conic], hw)[0]
+    b = refine_edges_batch(free, [conic], hw, look_outside=np.array([True]))[0]
+    assert a is not None and b is not None and len(a.points) == len(b.points)
+    # turns_back: a level that falls back by more than the threshold inside the walk
+    S = np.arange(6.0)[None, :]
+    prof = np.array([[0.0, 1, 2, 3, 3, 1.5]])
+    assert turns_back(prof, S, np.array([0.0]), np.array([5.0]), np.array([1.0]))[0]
+    assert not turns_back(prof, S, np.array([0.0]), np.array([4.0]), np.array([1.0]))[0]
