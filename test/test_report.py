@@ -81,3 +81,16 @@ def test_printable_targets_are_at_exact_scale(tmp_path: Path) -> None:
         assert abs(box[2] / 72 * 25.4 - 1000 * t.sheet[0]) < 0.01 and abs(box[3] / 72 * 25.4 - 1000 * t.sheet[1]) < 0.01
         svg = write_printable(t, tmp_path / f"{name}.svg").read_text()
         assert f"{t.name}: sheet" in svg or "50 mm" in svg
+
+
+def test_report_of_an_unrefined_calibration_has_every_page(tmp_path: Path, ring_target: Target, ring_session) -> None:
+    from pascal_calib_ros.calibrate.pipeline import CalibrationOptions
+
+    _cam, _, dets = ring_session
+    res = calibrate(dets, ring_target, CalibrationOptions(refine=False))  # closed form only: no residuals
+    files = write_report(res, dets, tmp_path)
+    assert len(re.findall(rb"/Type /Page\b", files.pdf.read_bytes())) == PAGES
+    data = json.loads(files.json.read_text())
+    assert data["refined"] is False and data["residuals"]["model_bias"]["detected"] is False
+    # coverage from the used detections' edges (no refined residuals to take them from)
+    assert 0.05 < data["coverage"]["observed_fraction"] < 0.9 and data["residuals"]["worst_views"] == []

@@ -28,7 +28,14 @@ from typing import Any
 
 import numpy as np
 
-from ..calibrate.diagnostics import distortion_field, grid_pixels, grid_shape, model_valid, view_hulls
+from ..calibrate.diagnostics import (
+    distortion_field,
+    grid_pixels,
+    grid_shape,
+    model_valid,
+    observed_field_mask,
+    view_hulls,
+)
 from ..calibrate.pipeline import CalibrationResult
 from ..calibrate.residual_stats import (
     MIN_EFFECTIVE,
@@ -73,7 +80,7 @@ class ReportData:
     dist_uv: np.ndarray  # distortion field over the observed field + FIELD_MARGIN
     dist_disp: np.ndarray
     valid_grid: np.ndarray  # (rows, cols) bool on a VALID_STEP grid: the model holds there
-    view_rms: np.ndarray  # RMS of each used view's residual vectors (edges and corners)
+    view_rms: np.ndarray  # RMS of each used view's residual vectors (edges and corners); NaN: none
 
 
 def report_data(res: CalibrationResult, dets: list[Detection]) -> ReportData:
@@ -81,7 +88,11 @@ def report_data(res: CalibrationResult, dets: list[Detection]) -> ReportData:
     w, h = res.width, res.height
     cam = res.camera()
     pts = res.feature_points()
-    field = res.observed_field()
+    if not sum(len(p) for p in pts):  # not refined (closed form only): the used detections' features
+        used = {v.name for v in res.views if v.used}
+        pts = [np.concatenate([*(e.points for e in d.edges), np.zeros((0, 2)) if d.corners is None
+                               else np.asarray(d.corners, float).reshape(-1, 2)]) for d in dets if d.name in used]
+    field = observed_field_mask(pts, w, h)
     s = res.residual_samples()
     reg = regional(s, w, h)
     rad = radial(s, (float(res.K[0, 2]), float(res.K[1, 2])))
@@ -94,7 +105,7 @@ def report_data(res: CalibrationResult, dets: list[Detection]) -> ReportData:
     cnt = np.bincount(s.view, minlength=n_views)
     return ReportData(res, dets, [v.name for v in res.views if v.used][:n_views], view_hulls(pts), field, s, reg, rad,
                       model_bias(reg, rad, w, h, res.model), views_per_region(pts, w, h, reg.grid), uv, disp, valid,
-                      np.sqrt(sq / np.maximum(cnt, 1)))
+                      np.where(cnt > 0, np.sqrt(sq / np.maximum(cnt, 1)), np.nan))
 
 
 def per_circle_rms(res: CalibrationResult) -> dict[str, float]:
@@ -112,7 +123,8 @@ def per_circle_rms(res: CalibrationResult) -> dict[str, float]:
 
 def worst_views(d: ReportData, n: int = WORST_VIEWS) -> list[int]:
     """Indices (into the used views) of the ``n`` views with the largest residual RMS."""
-    return [int(k) for k in np.argsort(-d.view_rms)[:n]]
+    rms = d.view_rms
+    return [int(k) for k in np.argsort(-np.nan_to_num(rms, nan=-1.0)) if np.isfinite(rms[k])][:n]
 
 
 def _histogram(d: ReportData) -> dict[str, Any]:
@@ -164,7 +176,7 @@ def report_numbers(d: ReportData) -> dict[str, Any]:
             "convention": "observed minus predicted; edge residuals along the contour's outward normal",
             "per_view_rms_px": [float(np.sqrt(np.mean(r * r))) if len(r) else float("nan")
                                 for r in res.edge_residuals],
-            "per_view_vector_rms_px": np.round(d.view_rms, 5).tolist(),
+            "per_view_vector_rms_px": [round(float(x), 5) if np.isfinite(x) else None for x in d.view_rms],
             "worst_views": [d.used_names[k] for k in worst_views(d) if k < len(d.used_names)],
             "per_circle_rms_px": per_circle_rms(res),
             "max_abs_px": float(max((np.max(np.abs(r)) for r in res.edge_residuals if len(r)), default=0.0)),
@@ -313,7 +325,8 @@ def panel_histogram(ax: Any, d: ReportData, hist: dict[str, Any]) -> None:
     ax.bar(mid, hist["count"], width=np.diff(e), color="tab:blue", alpha=0.6, label="residuals")
     ax.plot(mid, hist["expected"], "k-", lw=1.2, label="normal noise at each view's RMS")
     ax.set_xlabel("residual (px)")
-    ax.set_yscale("log")
+    if np.any(np.asarray(hist["count"]) > 0):  # no residuals (--no-refine): nothing to scale
+        ax.set_yscale("log")
     ax.legend(fontsize=8)
     ax.set_title("residual histogram against the expected noise", fontsize=9)
 
