@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from pascal_calib_ros.calibrate.collector import AXES, ViewCollector
-from pascal_calib_ros.calibrate.diagnostics import view_hulls
+from pascal_calib_ros.calibrate.diagnostics import feature_points, view_hulls
 from pascal_calib_ros.calibrate.live_overlay import (
     BAR_EMPTY_BGR,
     BAR_FULL_BGR,
@@ -15,7 +15,6 @@ from pascal_calib_ros.calibrate.live_overlay import (
     bar_colour,
     bar_rects,
     draw_live_overlay,
-    feature_points,
     panel_width,
 )
 from pascal_calib_ros.detect.detection import CircleEdge, Detection

@@ -399,13 +399,12 @@ def test_detections_show_footprints_coverage_bars_and_state(tmp_path: Path, sess
     from std_msgs.msg import Header
 
     from pascal_calib_ros.calibrate.collector import AXES, ViewCollector
-    from pascal_calib_ros.calibrate.diagnostics import view_hulls
+    from pascal_calib_ros.calibrate.diagnostics import feature_points, view_hulls
     from pascal_calib_ros.calibrate.live_overlay import (
         BAR_EMPTY_BGR,
         BAR_FULL_BGR,
         bar_rects,
         draw_live_overlay,
-        feature_points,
         panel_width,
     )
     from pascal_calib_ros.detect.detection import DetectionParams

@@ -13,6 +13,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from ..detect.detection import Detection
 from ..geometry.camera import Camera
 
 
@@ -30,6 +31,14 @@ def grid_pixels(width: int, height: int, step: float, mask: np.ndarray | None = 
     if mask is not None:
         uv = uv[mask[uv[:, 1].astype(int), uv[:, 0].astype(int)]]
     return uv
+
+
+def feature_points(det: Detection) -> np.ndarray:
+    """(N, 2) feature points of a detection: its edge points and checkerboard corners."""
+    parts = [np.asarray(e.points, float).reshape(-1, 2) for e in det.edges]
+    if det.corners is not None:
+        parts.append(np.asarray(det.corners, float).reshape(-1, 2))
+    return np.concatenate(parts) if parts else np.zeros((0, 2))
 
 
 def view_hulls(points_per_view: list[np.ndarray]) -> list[np.ndarray]:
@@ -81,15 +90,23 @@ def model_valid(cam: Camera, uv: np.ndarray, tolerance: float = 0.05) -> np.ndar
     """(N,) bool: pixels where the lens model holds as a camera model: its ray exists (the model
     is invertible there), projects back onto the pixel within ``tolerance`` px, and lies inside
     the angle up to which the model's radius grows monotonically (``LensModel.max_angle``)."""
-    if not len(uv):
-        return np.zeros(0, bool)
-    rays = cam.unproject(uv)
-    ok = np.all(np.isfinite(rays), 1)
-    if not cam.lens.wide:
-        ok &= rays[:, 2] > 1e-9
+    ok, rays = consistent_rays(cam, uv, tolerance)
     if ok.any():
-        back = cam.project(rays[ok])
-        ok[ok] &= np.linalg.norm(back - uv[ok], axis=1) < tolerance
         r = rays[ok] / np.linalg.norm(rays[ok], axis=1, keepdims=True)
         ok[ok] &= np.arccos(np.clip(r[:, 2], -1, 1)) <= cam.lens.max_angle(cam.D)
     return ok
+
+
+def consistent_rays(cam: Camera, uv: np.ndarray, tolerance: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
+    """(N,) bool and the rays (N, 3): pixels whose ray exists (in front of a pinhole camera) and
+    projects back onto the pixel within ``tolerance`` px; where a fitted model folds over, this fails."""
+    uv = np.asarray(uv, float).reshape(-1, 2)
+    if not len(uv):
+        return np.zeros(0, bool), np.zeros((0, 3))
+    rays = cam.unproject(uv)
+    ok = np.all(np.isfinite(rays), 1)
+    if not cam.lens.wide:
+        ok &= rays[:, 2] > 0
+    if ok.any():
+        ok[ok] &= np.linalg.norm(cam.project(rays[ok]) - uv[ok], axis=1) < tolerance
+    return ok, rays

@@ -4,7 +4,7 @@ person moving the target needs to see, like ROS ``camera_calibration``'s window.
 - The frame (grey, shown in colour), with the current detection drawn on it: the fitted edges
   green when usable, red with the rejection reason when not; checkerboard corners as circles.
 - The footprints of the stored views (each the convex hull of a view's feature points, see
-  :func:`feature_points`), tinted and outlined: the parts of the image no view has covered yet
+  :func:`.diagnostics.feature_points`), tinted and outlined: the parts of the image no view has covered yet
   are the ones left untinted.
 - The frame's verdict on a dark strip at the top left (``ok``, stored, or why not).
 - A panel to the right of the frame (the output is wider than the frame): the four coverage
@@ -41,14 +41,6 @@ TEXT_BGR = (235, 235, 235)
 WAIT_BGR = (0, 190, 255)  # amber: what is still missing
 PANEL_WIDTH = 200  # px at 600 px of image height, scaled with the height
 REFERENCE_HEIGHT = 600.0
-
-
-def feature_points(det: Detection) -> np.ndarray:
-    """(N, 2) feature points of a detection: its edge points and checkerboard corners."""
-    parts = [np.asarray(e.points, float).reshape(-1, 2) for e in det.edges]
-    if det.corners is not None:
-        parts.append(np.asarray(det.corners, float).reshape(-1, 2))
-    return np.concatenate(parts) if parts else np.zeros((0, 2))
 
 
 def bar_colour(fraction: float) -> tuple[int, int, int]:

@@ -18,7 +18,7 @@ from ..geometry.circular import CircularPointError
 from ..geometry.iac import DegenerateViewsError
 from ..geometry.lens import DISTORTION_CHOICES, LensModel
 from ..targets import Target
-from .diagnostics import observed_field_mask
+from .diagnostics import consistent_rays, observed_field_mask
 from .initial import (
     CIRCLE_METHODS,
     grid_homography_init,
@@ -556,13 +556,7 @@ def _check_model_fits(res: RefineResult, views: list[ViewData], lens: LensModel,
     edge points then have no ray (or not the one they came from). Refuse such a result and name
     the model to use, rather than publish a folded-over camera."""
     cam = Camera(res.K, res.D, w, h, lens.name)
-    pts = np.concatenate([v.points for v in views])
-    rays = cam.unproject(pts)
-    ok = np.all(np.isfinite(rays), 1)
-    if not lens.wide:
-        ok &= rays[:, 2] > 0
-    back = cam.project(rays[ok]) if ok.any() else np.zeros((0, 2))
-    ok[ok] &= np.linalg.norm(back - pts[ok], axis=1) < 0.05
+    ok, _ = consistent_rays(cam, np.concatenate([v.points for v in views]), 0.05)
     bad = float(np.mean(~ok))
     if bad > FOLD_REFUSE_FRACTION:
         field = float(np.degrees(lens.max_angle(res.D)))

@@ -30,6 +30,7 @@ import numpy as np
 
 from ..calibrate.diagnostics import (
     distortion_field,
+    feature_points,
     grid_pixels,
     grid_shape,
     model_valid,
@@ -90,8 +91,7 @@ def report_data(res: CalibrationResult, dets: list[Detection]) -> ReportData:
     pts = res.feature_points()
     if not sum(len(p) for p in pts):  # not refined (closed form only): the used detections' features
         used = {v.name for v in res.views if v.used}
-        pts = [np.concatenate([*(e.points for e in d.edges), np.zeros((0, 2)) if d.corners is None
-                               else np.asarray(d.corners, float).reshape(-1, 2)]) for d in dets if d.name in used]
+        pts = [feature_points(d) for d in dets if d.name in used]
     field = observed_field_mask(pts, w, h)
     s = res.residual_samples()
     reg = regional(s, w, h)

@@ -55,8 +55,8 @@ from ..calibrate.arm_session import (
 )
 from ..calibrate.collector import ViewCollector
 from ..calibrate.cross_validation import cross_validate
-from ..calibrate.diagnostics import view_hulls
-from ..calibrate.live_overlay import draw_live_overlay, feature_points
+from ..calibrate.diagnostics import feature_points, view_hulls
+from ..calibrate.live_overlay import draw_live_overlay
 from ..calibrate.pipeline import METHODS, CalibrationError, CalibrationOptions, CalibrationResult, calibrate
 from ..calibrate.refine import DISTORTION_MODELS, SHAPE_CHOICES
 from ..detect.detection import Detection, DetectionParams
