@@ -217,3 +217,25 @@ def test_fisheye_arm_session() -> None:
     err_mm, err_deg, _, _ = hand_eye_errors(res.hand_eye, s.hand_eye)
     assert err_mm < 2.0 and err_deg < 0.2, (err_mm, err_deg)
     assert abs(res.calibration.K[0, 0] / s.camera.K[0, 0] - 1) < 0.005
+
+
+def test_checkerboard_hand_eye_keeps_its_corner_residuals(tmp_path: Path) -> None:
+    """A plain checkerboard arm session: the joint result carries each view's corner residuals
+    (observed - predicted), whose RMS is the result's, so its report has residual statistics."""
+    import json
+
+    from pascal_calib_ros.io.report import write_report
+    from pascal_calib_ros.targets import resolve_target
+
+    board = resolve_target("checkerboard_a4")
+    s = simulate_arm_session(board, ArmSpec(views=8, width=640, height=480, focal=560, seed=5))
+    dets = [detect_target(im, board, name=f"v{k}") for k, im in enumerate(s.images[board.name])]
+    res = calibrate_hand_eye(dets, s.robot_poses, board, "eye_in_hand")
+    cal = res.calibration
+    assert len(cal.corner_residuals) == len(cal.corner_points) == res.views_used
+    assert all(r.shape == p.shape for r, p in zip(cal.corner_residuals, cal.corner_points, strict=True))
+    r = np.concatenate(cal.corner_residuals)
+    assert np.sqrt(np.mean(np.sum(r * r, 1))) == pytest.approx(res.rms_px, rel=1e-6)
+    data = json.loads(write_report(cal, dets, tmp_path).json.read_text())
+    assert sum(map(sum, data["residuals"]["regional"]["count"])) == len(r)
+    assert len(data["residuals"]["per_view_rms_px"]) == res.views_used

@@ -582,7 +582,8 @@ def calibrate_hand_eye(dets: list[Detection], robot_poses: Sequence[Transform | 
     kept = [idx[i] for i in active]
 
     X, Y, Cf, sol_info = _refine_chain(views, M, X0, Y0, C0, cal, options, he, target, origin)
-    (K, D, std, rms, offsets, view_rms, edge_res, sig_t, sig_r, sx_t, sx_r, sy_t, sy_r, success, intr_sd) = sol_info
+    (K, D, std, rms, offsets, view_rms, edge_res, sig_t, sig_r, sx_t, sx_r, sy_t, sy_r, success, intr_sd,
+     corner_res) = sol_info
     if he.jackknife_groups >= 2 and len(views) >= 2 * he.jackknife_groups:
         # the jackknife holds the intrinsics when they are held ("hold"): their share is added after
         jx_t, jx_r, jy_t, jy_r = _jackknife(views, M, X, Y, Cf, replace(cal, K=K, D=D), options, he, target,
@@ -614,7 +615,7 @@ def calibrate_hand_eye(dets: list[Detection], robot_poses: Sequence[Transform | 
                     poses=[np.r_[c.rotvec, c.translation] for c in Cf],
                     edge_points=[v.points for v in views], edge_residuals=edge_res,
                     edge_circles=[v.circle_ids for v in views], corner_points=[v.corners for v in views],
-                    corner_residuals=[])
+                    corner_residuals=corner_res)
     if axisymmetric:
         warnings.append("a single ring: the target's rotation about its axis is not observable (reported "
                         "arbitrarily); X is not affected")
@@ -783,6 +784,8 @@ def _refine_chain(views: list[ViewData], M: list[Transform], X0: Transform, Y0: 
         rms = float(np.sqrt(np.mean(np.sum(cr**2, 1))))
         view_rms = np.array([float(np.sqrt(np.mean(np.sum(cr[prob.view_of_corner == i] ** 2, 1))))
                              for i in range(prob.nv)])
+    corners = -f[prob.n_edge:prob.n_robust].reshape(-1, 2)  # observed - predicted, as refine's
+    corner_res = [corners[prob.view_of_corner == i] for i in range(prob.nv)]
     # robot error the data imply: the estimated sigmas, or the RMS of the disagreements per axis
     if he.estimate_robot_noise:
         err_mm, err_deg = 1000 * sig_t, float(np.degrees(sig_r))
@@ -793,7 +796,7 @@ def _refine_chain(views: list[ViewData], M: list[Transform], X0: Transform, Y0: 
     Y = Transform.from_rotvec(xy[6:9], xy[9:12])
     Cf = [Transform.from_rotvec(p[:3], p[3:6]) for p in poses]
     return X, Y, Cf, (K, D, std, rms, offsets, view_rms, edge_res, err_mm, err_deg, sx_t, sx_r, sy_t, sy_r,
-                      bool(sol.success), (ix_t, ix_r, iy_t, iy_r))
+                      bool(sol.success), (ix_t, ix_r, iy_t, iy_r), corner_res)
 
 
 __all__ = ["HAND_EYE_MODES", "HandEyeError", "HandEyeOptions", "HandEyeResult", "ViewReport", "calibrate_hand_eye",

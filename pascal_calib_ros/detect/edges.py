@@ -33,6 +33,10 @@ from ..geometry.conic import (
 )
 
 _INV_SQRT_2PI = 1.0 / np.sqrt(2 * np.pi)
+# a band's other edge within this many blur widths beyond a profile's window is fitted with it
+# (fit_band_profiles): ring_grid_a4 at 800x600, mean fx error of 4 sessions -0.0051 % at 3.5,
+# -0.0027 % at 5, -0.0024 % with every profile; 5 keeps large rings (5 MP) at the step fit's cost
+BAND_REACH = 5.0
 
 
 @dataclass(frozen=True)
@@ -111,6 +115,109 @@ def fit_step_profiles(prof: np.ndarray, s: np.ndarray, w0: float = 1.0, iteratio
         cost = np.where(better, cn, cost)
         lam = np.where(better, lam * 0.2, lam * 10.0)
     return p[:, 3], p[:, 4], p[:, 2], np.sqrt(cost / m)
+
+
+def fit_band_profiles(prof: np.ndarray, S: np.ndarray, lo0: np.ndarray, hi0: np.ndarray,
+                      w0: float | np.ndarray = 1.0, iterations: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    """Fit a + b s - c [Phi((s - lo)/w_lo) - Phi((s - hi)/w_hi)] (a band of contrast c between two
+    blurred edges lo < hi, on a linear ramp) to each row of ``prof`` sampled at the rows of ``S``;
+    vectorised Levenberg-Marquardt from the edges ``lo0``, ``hi0`` and blur ``w0`` (per row or one).
+
+    A thin band's two edges share their blurred tails: a single step fitted to one of them is
+    pulled towards the other (ring_grid_a4 at 800x600: bands of 3-6 px, by up to 0.3 px, more where
+    foreshortening narrows the band, hence the elliptical residual pattern of each ring). Returns
+    the parameters (n, 7) [a, b, c, lo, w_lo, hi, w_hi] and each profile's RMS residual."""
+    n, m = prof.shape
+    y = prof.astype(np.float64)
+    k = max(2, m // 8)
+    level = (y[:, :k].mean(1) + y[:, -k:].mean(1)) / 2
+    w = np.broadcast_to(np.asarray(w0, float), (n,))
+    p = np.stack([level, np.zeros(n), level - y.min(1), lo0, w, hi0, w], 1)
+    lam = np.full(n, 1e-2)
+    eye = np.eye(7)[None]
+    ones = np.ones((n, m))
+
+    def model(p: np.ndarray) -> tuple[np.ndarray, ...]:
+        z_lo, z_hi = (S - p[:, 3:4]) / p[:, 4:5], (S - p[:, 5:6]) / p[:, 6:7]
+        band = ndtr(z_lo) - ndtr(z_hi)
+        return p[:, 0:1] + p[:, 1:2] * S - p[:, 2:3] * band, z_lo, z_hi, band
+
+    f, z_lo, z_hi, band = model(p)
+    r = y - f
+    cost = np.sum(r * r, 1)
+    for _ in range(iterations):
+        d_lo = p[:, 2:3] * _INV_SQRT_2PI * np.exp(-0.5 * z_lo * z_lo) / p[:, 4:5]
+        d_hi = -p[:, 2:3] * _INV_SQRT_2PI * np.exp(-0.5 * z_hi * z_hi) / p[:, 6:7]
+        J = np.stack([ones, S, -band, d_lo, d_lo * z_lo, d_hi, d_hi * z_hi], 1)  # (n, 7, m)
+        A = J @ J.transpose(0, 2, 1)
+        g = (J @ r[:, :, None])[..., 0]
+        diag = np.einsum("nii->ni", A)
+        step = np.linalg.solve(A + (lam[:, None] * diag + 1e-9)[:, :, None] * eye, g[..., None])[..., 0]
+        pn = p + step
+        pn[:, 4] = np.clip(pn[:, 4], 0.15, 50.0)
+        pn[:, 6] = np.clip(pn[:, 6], 0.15, 50.0)
+        fn, zl, zh, bn = model(pn)
+        rn = y - fn
+        cn = np.sum(rn * rn, 1)
+        better = cn < cost
+        b = better[:, None]
+        p = np.where(b, pn, p)
+        z_lo, z_hi, band, r = np.where(b, zl, z_lo), np.where(b, zh, z_hi), np.where(b, bn, band), np.where(b, rn, r)
+        cost = np.where(better, cn, cost)
+        lam = np.where(better, lam * 0.2, lam * 10.0)
+    return p, np.sqrt(cost / m)
+
+
+def ray_conic_nearest(C: np.ndarray, P: np.ndarray, N: np.ndarray) -> np.ndarray:
+    """Per row, the offset s of the intersection of the ray P + s N with the conic C (one (3, 3)
+    per row) nearest to P; NaN where the line misses it."""
+    d = np.concatenate([N, np.zeros((len(N), 1))], 1)
+    X = np.concatenate([P, np.ones((len(P), 1))], 1)
+    qa = np.einsum("ni,nij,nj->n", d, C, d)
+    qb = np.einsum("ni,nij,nj->n", d, C, X)
+    qc = np.einsum("ni,nij,nj->n", X, C, X)
+    disc = qb * qb - qa * qc
+    sq = np.sqrt(np.where(disc >= 0, disc, np.nan))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r1, r2 = (-qb + sq) / qa, (-qb - sq) / qa
+    return np.where(np.abs(r1) < np.abs(r2), r1, r2)
+
+
+def _fit_bands(img: np.ndarray, P: np.ndarray, N: np.ndarray, hw: np.ndarray, C_other: np.ndarray,
+               rows: np.ndarray, m: int, step: tuple[np.ndarray, ...]
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The profiles ``rows`` (points P, normals N, half-windows hw) refitted across the band to
+    the partner edge ``C_other`` (one conic per row): their s0, width, contrast (sign as the step
+    fit's) and RMS replace ``step``'s where the normal meets the partner close enough for its
+    blurred tail (BAND_REACH blur widths) to reach the window (elsewhere, on a strongly tilted ring, the
+    normal passes beside the inner edge, and on a large ring the partner is far: the step fit
+    stays); the returned mask is False where the fit lost the band. The fit starts from the step
+    fit's edge and width."""
+    s0, wid, con, rms = (a.copy() for a in step)
+    ok = np.ones(len(s0), bool)
+    s_meet = ray_conic_nearest(C_other, P[rows], N[rows])
+    w_step = np.clip(wid[rows], 0.5, 3.0)
+    near = (np.isfinite(s_meet) & (np.abs(s_meet) > 0.5) & (np.abs(s_meet) < hw[rows] + BAND_REACH * w_step)
+            & (np.abs(s0[rows]) < hw[rows]))
+    rows, s_other, w_step = rows[near], s_meet[near], w_step[near]
+    if len(rows) == 0:
+        return s0, wid, con, rms, ok
+    Pr, Nr, h = P[rows], N[rows], hw[rows]
+    own0 = s0[rows]
+    lo0, hi0 = np.where(s_other < 0, s_other, own0), np.where(s_other < 0, own0, s_other)
+    S = (lo0 - h)[:, None] + np.linspace(0.0, 1.0, m)[None, :] * (hi0 - lo0 + 2 * h)[:, None]
+    mx = (Pr[:, 0:1] + S * Nr[:, 0:1]).astype(np.float32)
+    my = (Pr[:, 1:2] + S * Nr[:, 1:2]).astype(np.float32)
+    prof = cv2.remap(img, mx, my, interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    p, r = fit_band_profiles(prof, S, lo0, hi0, w_step, iterations=4)
+    own_hi = s_other < 0  # the partner lies inwards: this curve's edge is the band's outer side
+    s0[rows] = np.where(own_hi, p[:, 5], p[:, 3])
+    wid[rows] = np.where(own_hi, p[:, 6], p[:, 4])
+    con[rows] = np.where(own_hi, p[:, 2], -p[:, 2])  # > 0: dark-to-bright outwards, as the step fit
+    rms[rows] = r
+    other = np.where(own_hi, p[:, 3], p[:, 5])
+    ok[rows] = (p[:, 5] - p[:, 3] > 0.3) & (np.abs(other - s_other) < h) & np.all(np.isfinite(p), 1)
+    return s0, wid, con, rms, ok
 
 
 def turns_back(prof: np.ndarray, S: np.ndarray, start: np.ndarray, reach: np.ndarray, threshold: np.ndarray
@@ -192,7 +299,8 @@ def refine_edge(image: np.ndarray, conic: np.ndarray, spacing: float = 1.0, half
 def refine_edges_batch(image: np.ndarray, conics: list[np.ndarray], half_windows: np.ndarray, spacing: float = 1.5,
                        max_width: float = 6.0, min_contrast: float = 8.0, curvature_correction: bool = True,
                        samples: int = 13, look_outside: np.ndarray | None = None, outside_reach: float = 3.0,
-                       outside_cap: float = 1.0, outside_fall: float = 0.05) -> list[EdgeFit | None]:
+                       outside_cap: float = 1.0, outside_fall: float = 0.05, partners: np.ndarray | None = None
+                       ) -> list[EdgeFit | None]:
     """:func:`refine_edge` for many small curves at once (grid elements): one profile sampling,
     one vectorised step fit and batched algebraic conic fits for all of them. A curve whose edge
     cannot be measured gives None.
@@ -209,7 +317,12 @@ def refine_edges_batch(image: np.ndarray, conics: list[np.ndarray], half_windows
     the inner discs', and fx -0.03..-0.07 % (3-5 sigma) at blur 1 px. Without those profiles
     fx matches renders of a sheet 20 mm wider (mean +0.008 % against +0.006 % over 8 sessions
     and noise draws; at blur 2 px -0.1..-0.3 % became +0.01..+0.03 %). A neighbour's edge that
-    close is dropped alike (strongly tilted views: their profiles were biased the same way)."""
+    close is dropped alike (strongly tilted views: their profiles were biased the same way).
+
+    ``partners`` (one index into ``conics`` per curve, -1 for none; grids: a ring's outer and inner
+    edge) names the other edge of the same dark band: each profile then reaches across the band
+    to the partner (where the normal meets it) and is fitted with both edges
+    (:func:`fit_band_profiles`); the curve's own edge is reported."""
     img = image if image.dtype == np.float32 else image.astype(np.float32)
     h, w = img.shape
     out: list[EdgeFit | None] = [None] * len(conics)
@@ -253,9 +366,15 @@ def refine_edges_batch(image: np.ndarray, conics: list[np.ndarray], half_windows
     # three iterations from the moment start: more move s0 by < 0.01 px (99 % below 0.006 px; grey
     # noise moves it by 0.05 px) and did not change `pascal-calib study grids` beyond its noise
     s0, wid, con, rms = fit_step_profiles(prof, S, iterations=3)
+    band_ok = np.ones(len(gid), bool)
+    part = np.full(len(conics), -1) if partners is None else np.asarray(partners, int)
+    rows = np.flatnonzero(part[k] >= 0)
+    if len(rows):
+        s0, wid, con, rms, band_ok = _fit_bands(img, P, N, hw, C_all[part[k[rows]]], rows, 2 * samples - 1,
+                                                (s0, wid, con, rms))
     sign = np.sign(np.bincount(gid, np.sign(con), len(use)))  # the majority's sign = the median's
     ok = ((np.abs(con) >= min_contrast) & (np.sign(con) == sign[gid]) & (np.abs(s0) < hw - 0.25)
-          & (wid < max_width) & (rms < 0.25 * np.abs(con) + 1.0))
+          & (wid < max_width) & (rms < 0.25 * np.abs(con) + 1.0) & band_ok)
     if look.any():
         # walk outwards (o: +1 where the normal points away from the centre) from one blur width
         # past the edge: the level there is the outside's plateau and must not turn back

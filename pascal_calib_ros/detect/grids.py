@@ -199,7 +199,7 @@ def detect_grid(gray: np.ndarray, work: np.ndarray, blobs: list, target: Target,
     edges: list[tuple[int, np.ndarray, np.ndarray, float, float]] = []
     dropped = 0
     # one batched measurement for all edges; the profile window must not reach the next edge
-    conics, windows, idx_of, look_outside = [], [], [], []
+    conics, windows, idx_of, look_outside, partners = [], [], [], [], []
     for k, r, c in zip(keys, rows_idx, cols_idx, strict=True):
         outer, inner, touches = cands[k]
         if touches:
@@ -212,22 +212,26 @@ def detect_grid(gray: np.ndarray, work: np.ndarray, blobs: list, target: Target,
         conics.append(outer.to_conic())
         windows.append(hw)
         idx_of.append(idx)
-        look_outside.append(grid.kind == "disc")
+        look_outside.append(True)  # the outer edge: a disc's, or a ring's (the sheet's border beyond)
+        partners.append(-1)
         if grid.kind == "ring" and inner is not None:
             conics.append(inner.to_conic())
             windows.append(hw)
             idx_of.append(idx + 1)
             look_outside.append(False)
+            partners[-1] = len(conics) - 1  # the ring's two edges bound one dark band: fitted together
+            partners.append(len(conics) - 2)
     # one pass: the threshold contours' ellipses are close enough for the profiles' windows and
     # normals (a second, re-centred pass measured no better in `pascal-calib study grids`); one
     # profile per 3 px of arc (default spacing): the refinement keeps ~10 points per element of a
-    # 70-element view, and denser profiles measured no better there either. Discs: profiles that
-    # see another edge just beyond their window (the sheet's border next to the outer discs, a
-    # close neighbour under strong tilt) are not used (refine_edges_batch, look_outside). Not for
-    # rings: there it moved fx of ring_grid_a4 by -0.03..-0.05 % (its outer edges lost the
-    # border side while the inner edges kept the full arc; the border itself moved fx < 0.03 %)
+    # 70-element view, and denser profiles measured no better there either. Outer edges: profiles
+    # that see another edge just beyond their window (the sheet's border next to the outer
+    # elements, a close neighbour under strong tilt) are not used (refine_edges_batch,
+    # look_outside). A ring's two edges are fitted as one band (partners): a single step fitted to
+    # a 3-6 px band is pulled by the other edge's blurred tail (README, Trust: ring grids).
     fits = refine_edges_batch(work, conics, np.array(windows), spacing=2 * spacing, max_width=max_blur,
-                              curvature_correction=curvature_correction, look_outside=np.array(look_outside))
+                              curvature_correction=curvature_correction, look_outside=np.array(look_outside),
+                              partners=np.array(partners, int))
     measured = {i for i, f in zip(idx_of, fits, strict=True) if f is not None}
     for i, f in zip(idx_of, fits, strict=True):
         outer_idx = i if target.circles[i].dark_inside else i - 1

@@ -105,6 +105,9 @@ PARAMS = (
           choices=tuple(SHAPE_CHOICES)),
     Param("cross_validate", False, "~/calibrate also calibrates two interleaved halves of the views and compares "
           "them against their projection uncertainty (needs 2 x min_views views; not with hand_eye)"),
+    Param("gamma", 1.0, "linearise intensities with this display gamma before locating edges (1: a linear "
+          "sensor, as most machine-vision cameras by default; about 2.2: sRGB webcams); see the README, Trust",
+          float_range=(0.2, 5.0)),
     Param("auto_calibrate", False, "calibrate as soon as the coverage is complete"),
     Param("qos", "auto", "image subscription reliability: auto (match the publisher) | reliable | best_effort",
           choices=("auto", "reliable", "best_effort")),
@@ -383,7 +386,8 @@ class CalibrationNode(Node):
             self.frame_id = msg.header.frame_id
         with self.lock:
             target = self.target
-        params = DetectionParams.for_lens(lens_model(str(self.p("distortion_model"))).wide)
+        params = DetectionParams.for_lens(lens_model(str(self.p("distortion_model"))).wide,
+                                          gamma=float(self.p("gamma")))
         det = detect_target(img, target, params, name=f"frame_{self.frames_received:06d}")
         stamp_ns = int(msg.header.stamp.sec) * 10**9 + int(msg.header.stamp.nanosec)
         if self.poses is not None:  # the pose for this stamp may still be on its way (another topic)

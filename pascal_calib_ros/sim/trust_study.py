@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from ..calibrate.pipeline import CalibrationError, CalibrationOptions, calibrate
+from ..detect.detection import DetectionParams
 from ..detect.target_detector import detect_target
 from ..targets import resolve_target
 from .render import render_view
@@ -40,6 +41,7 @@ class TrustScenario:
     target: str
     spec: SessionSpec
     distortion: str = "plumb_bob"
+    gamma: float = 1.0  # detection linearises with this display gamma (``--gamma``); 1: as the default
 
 
 def scenarios(views: int) -> tuple[TrustScenario, ...]:
@@ -53,10 +55,13 @@ def scenarios(views: int) -> tuple[TrustScenario, ...]:
         TrustScenario("board A3, 1224x1029, k1 -0.1", "pascal_board_a3",
                       replace(base, width=1224, height=1029, k1=-0.1, blur=1.2, size_range=(0.4, 0.7))),
         TrustScenario("ring grid, 800x600, k1 -0.2", "ring_grid_a4", base),
+        TrustScenario("ring grid, 800x600, k1 -0.2, --gamma 2.2", "ring_grid_a4", base, gamma=2.2),
         TrustScenario("disc grid, 800x600, k1 -0.2", "disc_grid_a4", base),
         TrustScenario("ring, JPEG 90, blur 1.5", "ring_a4", replace(base, blur=1.5, jpeg=90)),
         TrustScenario("ring, strong distortion k1 -0.45", "ring_a4", replace(base, k1=-0.45, pixel_range=(0.1, 0.9))),
         TrustScenario("ring grid, fisheye 190 deg (equidistant)", "ring_grid_a4", fisheye.spec, fisheye.distortion),
+        TrustScenario("ring grid, fisheye 190 deg (equidistant), --gamma 2.2", "ring_grid_a4", fisheye.spec,
+                      fisheye.distortion, gamma=2.2),
     )
 
 
@@ -72,7 +77,7 @@ def _one_draw(args: tuple[TrustScenario, int, str]) -> dict[str, Any]:
     for k, (name, pose, sens) in enumerate(session_views(target, spec)):
         sens = replace(sens, seed=10_000 * (draw + 1) + k, noise_sigma=0.0 if mode == "clean" else sens.noise_sigma)
         img = render_view(target, cam, pose, sens, spec.sheet_shape(target)).image
-        dets.append(detect_target(img, target, name=name))
+        dets.append(detect_target(img, target, name=name, params=DetectionParams(gamma=sc.gamma)))
     try:
         res = calibrate(dets, target, CalibrationOptions(distortion=sc.distortion))
     except CalibrationError as e:
