@@ -24,9 +24,12 @@ from typing import Any
 
 import numpy as np
 
-from ..calibrate.pipeline import CalibrationError, CalibrationOptions, calibrate
+from ..calibrate.compare import projection_difference
+from ..calibrate.pipeline import CalibrationError, CalibrationOptions, CalibrationResult, calibrate
+from ..calibrate.uncertainty import rotation_displacements, rotation_free_difference_variance
 from ..detect.detection import DetectionParams
 from ..detect.target_detector import detect_target
+from ..geometry.camera import Camera
 from ..targets import resolve_target
 from .render import render_view
 from .session import SessionSpec, session_views
@@ -85,7 +88,29 @@ def _one_draw(args: tuple[TrustScenario, int, str]) -> dict[str, Any]:
     truth = {"fx": cam.K[0, 0], "fy": cam.K[1, 1], "cx": cam.K[0, 2], "cy": cam.K[1, 2]}
     est = {"fx": res.K[0, 0], "fy": res.K[1, 1], "cx": res.K[0, 2], "cy": res.K[1, 2]}
     return {"est": est, "err": {p: est[p] - truth[p] for p in PARAMS},
-            "std": {p: res.std.get(p, np.nan) for p in PARAMS}, "views": res.n_used, "rms": res.rms}
+            "std": {p: res.std.get(p, np.nan) for p in PARAMS}, "views": res.n_used, "rms": res.rms,
+            "projection": projection_against_truth(res, cam) if mode == "session" else None}
+
+
+def projection_against_truth(res: CalibrationResult, truth: Camera, step: float = 20.0) -> dict[str, float]:
+    """The calibration's projection error against the true camera, as ``pascal-calib diff`` measures
+    a difference (at infinity, over the observed field, after the best-fitting rotation), beside
+    the RMS that its covariance predicts for that quantity
+    (:func:`~..calibrate.uncertainty.rotation_free_difference_variance`, the calibration's own share
+    only: the truth has none). Their ratio is 1 when the projection uncertainty describes the
+    error."""
+    ref = res.refinement
+    est = res.camera()
+    field = res.observed_field()
+    diff = projection_difference(est, truth, region_mask=field, step=step)
+    actual = float(np.sqrt(np.mean(np.sum(diff.difference**2, 1))))
+    if ref is None or ref.covariance is None or ref.x is None:
+        return {"actual_px": actual, "predicted_px": float("nan"), "ratio": float("nan")}
+    rays = est.unproject(diff.pixels)
+    var = rotation_free_difference_variance(ref.camera_of, ref.view_poses_of, ref.x, ref.covariance, rays,
+                                            rotation_displacements(est, rays))
+    predicted = float(np.sqrt(np.mean(var)))
+    return {"actual_px": actual, "predicted_px": predicted, "ratio": actual / predicted}
 
 
 def run_scenario(sc: TrustScenario, draws: int, workers: int = 2) -> dict[str, list[dict[str, Any]]]:
@@ -105,6 +130,8 @@ def summarise(sc: TrustScenario, results: dict[str, list[dict[str, Any]]]) -> li
     ok = [r for r in results["noise"] if "error" not in r]
     ses = [r for r in results["session"] if "error" not in r]
     clean = [r for r in results["clean"] if "error" not in r]
+    ratios = np.array([r["projection"]["ratio"] for r in ses if r.get("projection")])
+    ratios = ratios[np.isfinite(ratios)]
     for p in PARAMS:
         est = np.array([r["est"][p] for r in ok])
         err = np.array([r["err"][p] for r in ok])
@@ -119,7 +146,9 @@ def summarise(sc: TrustScenario, results: dict[str, list[dict[str, Any]]]) -> li
                      "noise_free_err_over_sigma": float(clean[0]["err"][p] / sigma) if clean else float("nan"),
                      "sessions": len(ses),
                      "z_spread_sessions": float(np.std(z, ddof=1)) if len(z) > 1 else float("nan"),
-                     "max_abs_z_sessions": float(np.max(np.abs(z))) if len(z) else float("nan")})
+                     "max_abs_z_sessions": float(np.max(np.abs(z))) if len(z) else float("nan"),
+                     "projection_ratio_median": float(np.median(ratios)) if len(ratios) else float("nan"),
+                     "projection_ratio_max": float(np.max(ratios)) if len(ratios) else float("nan")})
     return rows
 
 
