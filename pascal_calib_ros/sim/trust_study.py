@@ -92,14 +92,15 @@ def _one_draw(args: tuple[TrustScenario, int, str]) -> dict[str, Any]:
             "projection": projection_against_truth(res, cam) if mode == "session" else None}
 
 
-def projection_against_truth(res: CalibrationResult, truth: Camera, step: float = 20.0) -> dict[str, float]:
+def projection_against_truth(res: CalibrationResult, truth: Camera, step: float | None = None) -> dict[str, float]:
     """The calibration's projection error against the true camera, as ``pascal-calib diff`` measures
     a difference (at infinity, over the observed field, after the best-fitting rotation), beside
     the RMS that its covariance predicts for that quantity
     (:func:`~..calibrate.uncertainty.rotation_free_difference_variance`, the calibration's own share
     only: the truth has none). Their ratio is 1 when the projection uncertainty describes the
-    error."""
+    error. ``step``: the grid's spacing in pixels (default: 1/40 of the larger image side)."""
     ref = res.refinement
+    step = step or max(res.width, res.height) / 40.0
     est = res.camera()
     field = res.observed_field()
     diff = projection_difference(est, truth, region_mask=field, step=step)
