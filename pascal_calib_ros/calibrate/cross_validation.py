@@ -134,15 +134,19 @@ def expected_difference(res_a: CalibrationResult, res_b: CalibrationResult, pixe
     ok = np.all(np.isfinite(rays), 1)
     out = np.full(len(pixels), np.nan)
     H = rotation_displacements(cam_a, rays[ok])
-    var = np.zeros(int(ok.sum()))
-    for res in (res_a, res_b):
-        ref = res.refinement
-        if ref is None or ref.covariance is None or ref.x is None:
-            raise CalibrationError("a half has no parameter covariance; cannot judge the difference")
-        var += rotation_free_difference_variance(ref.camera_of, ref.view_poses_of, ref.x, ref.covariance,
-                                                 rays[ok], H)
+    var = difference_share(res_a, rays[ok], H) + difference_share(res_b, rays[ok], H)
     out[ok] = np.sqrt(np.maximum(var, 0.0))
     return out
+
+
+def difference_share(res: CalibrationResult, rays: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """Per ray (N,): the expected squared length of this calibration's share of a projection
+    difference at infinity after the fitted rotation (H: :func:`~.uncertainty.rotation_displacements`
+    of the rays). Raises :class:`CalibrationError` without a parameter covariance."""
+    ref = res.refinement
+    if ref is None or ref.covariance is None or ref.x is None:
+        raise CalibrationError("a calibration has no parameter covariance; cannot judge the difference")
+    return rotation_free_difference_variance(ref.camera_of, ref.view_poses_of, ref.x, ref.covariance, rays, H)
 
 
 # the next richer model to try when the halves disagree (none for the richest ones)

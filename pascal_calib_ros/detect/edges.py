@@ -28,6 +28,7 @@ from ..geometry.conic import (
     fit_conic,
     fit_conics_algebraic,
     group_medians,
+    ray_conic_nearest,
     sampson_distance,
     sampson_distances,
 )
@@ -177,21 +178,6 @@ def fit_band_profiles(prof: np.ndarray, S: np.ndarray, lo0: np.ndarray, hi0: np.
         cost = np.where(better, cn, cost)
         lam = np.where(better, lam * 0.2, lam * 10.0)
     return p, np.sqrt(cost / m)
-
-
-def ray_conic_nearest(C: np.ndarray, P: np.ndarray, N: np.ndarray) -> np.ndarray:
-    """Per row, the offset s of the intersection of the ray P + s N with the conic C (one (3, 3)
-    per row) nearest to P; NaN where the line misses it."""
-    d = np.concatenate([N, np.zeros((len(N), 1))], 1)
-    X = np.concatenate([P, np.ones((len(P), 1))], 1)
-    qa = np.einsum("ni,nij,nj->n", d, C, d)
-    qb = np.einsum("ni,nij,nj->n", d, C, X)
-    qc = np.einsum("ni,nij,nj->n", X, C, X)
-    disc = qb * qb - qa * qc
-    sq = np.sqrt(np.where(disc >= 0, disc, np.nan))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        r1, r2 = (-qb + sq) / qa, (-qb - sq) / qa
-    return np.where(np.abs(r1) < np.abs(r2), r1, r2)
 
 
 def _fit_bands(img: np.ndarray, P: np.ndarray, N: np.ndarray, hw: np.ndarray, C_other: np.ndarray,

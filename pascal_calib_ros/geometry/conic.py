@@ -308,6 +308,21 @@ def conic_image_of_circle(H: np.ndarray, center: tuple[float, float], radius: fl
     return normalize_conic(Hi.T @ C @ Hi)
 
 
+def ray_conic_nearest(C: np.ndarray, P: np.ndarray, N: np.ndarray) -> np.ndarray:
+    """Per row, the offset s of the intersection of the ray P + s N with the conic C (one (3, 3)
+    per row) nearest to P; NaN where the line misses it."""
+    d = np.concatenate([N, np.zeros((len(N), 1))], 1)
+    X = np.concatenate([P, np.ones((len(P), 1))], 1)
+    qa = np.einsum("ni,nij,nj->n", d, C, d)
+    qb = np.einsum("ni,nij,nj->n", d, C, X)
+    qc = np.einsum("ni,nij,nj->n", X, C, X)
+    disc = qb * qb - qa * qc
+    sq = np.sqrt(np.where(disc >= 0, disc, np.nan))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r1, r2 = (-qb + sq) / qa, (-qb - sq) / qa
+    return np.where(np.abs(r1) < np.abs(r2), r1, r2)
+
+
 def line_conic_intersection(line: np.ndarray, C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The two (possibly complex) intersections of a line with a conic, homogeneous 3-vectors.
 

@@ -25,8 +25,9 @@ from typing import Any
 import numpy as np
 
 from ..calibrate.compare import projection_difference
+from ..calibrate.cross_validation import difference_share
 from ..calibrate.pipeline import CalibrationError, CalibrationOptions, CalibrationResult, calibrate
-from ..calibrate.uncertainty import rotation_displacements, rotation_free_difference_variance
+from ..calibrate.uncertainty import rotation_displacements
 from ..detect.detection import DetectionParams
 from ..detect.target_detector import detect_target
 from ..geometry.camera import Camera
@@ -99,17 +100,15 @@ def projection_against_truth(res: CalibrationResult, truth: Camera, step: float 
     (:func:`~..calibrate.uncertainty.rotation_free_difference_variance`, the calibration's own share
     only: the truth has none). Their ratio is 1 when the projection uncertainty describes the
     error. ``step``: the grid's spacing in pixels (default: 1/40 of the larger image side)."""
-    ref = res.refinement
     step = step or max(res.width, res.height) / 40.0
     est = res.camera()
-    field = res.observed_field()
-    diff = projection_difference(est, truth, region_mask=field, step=step)
+    diff = projection_difference(est, truth, region_mask=res.observed_field(), step=step)
     actual = float(np.sqrt(np.mean(np.sum(diff.difference**2, 1))))
-    if ref is None or ref.covariance is None or ref.x is None:
-        return {"actual_px": actual, "predicted_px": float("nan"), "ratio": float("nan")}
     rays = est.unproject(diff.pixels)
-    var = rotation_free_difference_variance(ref.camera_of, ref.view_poses_of, ref.x, ref.covariance, rays,
-                                            rotation_displacements(est, rays))
+    try:
+        var = difference_share(res, rays, rotation_displacements(est, rays))
+    except CalibrationError:  # no covariance (not refined)
+        return {"actual_px": actual, "predicted_px": float("nan"), "ratio": float("nan")}
     predicted = float(np.sqrt(np.mean(var)))
     return {"actual_px": actual, "predicted_px": predicted, "ratio": actual / predicted}
 
