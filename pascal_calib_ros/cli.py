@@ -118,13 +118,16 @@ def format_summary(res: CalibrationResult) -> str:
     return "\n".join(lines)
 
 
-def _write_report(res: CalibrationResult, dets: list[Detection], out_dir: str, paths: list[Path]) -> None:
-    """report.pdf / .png / .json (io/report.py), the worst views drawn on their own images."""
+def _write_report(res: CalibrationResult, dets: list[Detection], out_dir: str, paths: list[Path],
+                  hand_eye: Any = None) -> None:
+    """report.pdf / .png / .json (io/report.py), the worst views drawn on their own images; with a
+    hand-eye result its page and numbers too."""
     from .io.report import write_report
 
     by_name = {p.name: p for p in paths}
     t0 = time.perf_counter()
-    files = write_report(res, dets, out_dir, images=lambda n: read_grey(by_name[n]) if n in by_name else None)
+    files = write_report(res, dets, out_dir, images=lambda n: read_grey(by_name[n]) if n in by_name else None,
+                         hand_eye=hand_eye)
     print(f"wrote {files.pdf}, {files.png} and {files.json} ({time.perf_counter() - t0:.1f} s)")
 
 
@@ -193,8 +196,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 def _handeye_bag_input(args: argparse.Namespace, target: Target, params: DetectionParams
                        ) -> tuple[str, str, list[Detection], list[Transform | None]] | None:
     """(base frame, tool frame, detections, robot poses) of the still frames of an arm session
-    bag (:mod:`.calibrate.arm_bag`), or None after printing why not."""
-    from .calibrate.arm_bag import read_arm_bag
+    bag (:mod:`.io.arm_bag`), or None after printing why not."""
+    from .io.arm_bag import read_arm_bag
     from .io.bags import BagError
 
     try:
@@ -221,6 +224,10 @@ def cmd_handeye(args: argparse.Namespace) -> int:
     if target is None:
         return EXIT_INPUT
     params = DetectionParams.for_lens(lens_model(args.distortion).wide, gamma=args.gamma, max_blur=args.max_blur)
+    if not (args.arm_accuracy_mm >= 0 and args.arm_accuracy_length > 0):  # NaN fails too
+        print(f"error: --arm-accuracy-mm {args.arm_accuracy_mm} --arm-accuracy-length {args.arm_accuracy_length}: "
+              "give an accuracy >= 0 mm and a length > 0 m", file=sys.stderr)
+        return EXIT_INPUT
     if args.bag and (args.poses or args.images):
         print("error: give either --bag BAG or --poses POSES.yaml IMAGES..., not both", file=sys.stderr)
         return EXIT_INPUT
@@ -253,7 +260,8 @@ def cmd_handeye(args: argparse.Namespace) -> int:
         robot = [poses.get(p.name) for p in paths]
         pose_source = Path(args.poses).name
     opts = CalibrationOptions(method=args.method or "", distortion=args.distortion, zero_skew=not args.skew)
-    he = HandEyeOptions(args.mode, args.robot_sigma_mm, args.robot_sigma_deg, not args.fixed_robot_sigma)
+    he = HandEyeOptions(args.mode, args.robot_sigma_mm, args.robot_sigma_deg, not args.fixed_robot_sigma,
+                        arm_accuracy_mm=args.arm_accuracy_mm, arm_accuracy_length=args.arm_accuracy_length)
     t0 = time.perf_counter()
     try:
         res = calibrate_hand_eye(dets, robot, target, args.mode, opts, he)
@@ -284,7 +292,7 @@ def cmd_handeye(args: argparse.Namespace) -> int:
           f"--x {t[0]:.6f} --y {t[1]:.6f} --z {t[2]:.6f} --qx {q[0]:.7f} --qy {q[1]:.7f} --qz {q[2]:.7f} "
           f"--qw {q[3]:.7f} --frame-id {parent} --child-frame-id {args.camera_frame}")
     if args.report:
-        _write_report(cal, dets, args.report, paths)
+        _write_report(cal, dets, args.report, paths, hand_eye=res)
     return EXIT_OK
 
 
@@ -320,7 +328,8 @@ def cmd_study(args: argparse.Namespace) -> int:
     if args.name == "handeye":
         from .sim.handeye_study import run_handeye_study
 
-        run_handeye_study(Path(args.out), views=args.views or 20, seed=args.seed, opencv4_python=args.opencv4_python)
+        run_handeye_study(Path(args.out), views=args.views or 20, seed=args.seed, opencv4_python=args.opencv4_python,
+                          targets=tuple(args.targets.split(",")), systematic_mm=args.arm_systematic_mm)
         return EXIT_OK
     if args.name == "trust":
         from .sim.trust_study import trust
@@ -484,6 +493,10 @@ def build_parser() -> argparse.ArgumentParser:
     h.add_argument("--robot-sigma-mm", type=float, default=0.1, help="the arm's pose accuracy per axis (start)")
     h.add_argument("--robot-sigma-deg", type=float, default=0.01)
     h.add_argument("--fixed-robot-sigma", action="store_true", help="do not estimate the arm's accuracy")
+    h.add_argument("--arm-accuracy-mm", type=float, default=0.2,
+                   help="the arm's systematic position error per axis over the workspace (absolute accuracy), which "
+                        "no session can measure; its share is added to sigma(X) (0: left out)")
+    h.add_argument("--arm-accuracy-length", type=float, default=0.3, help="metres over which that error changes")
     h.add_argument("--report", metavar="DIR", help="write report.pdf (7 pages), report.png and report.json into DIR")
     h.add_argument("images", nargs="*", help="image files or folders (with --poses)")
     h.set_defaults(func=cmd_handeye)
@@ -570,6 +583,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--draws", type=int, default=10, help="trust: noise draws and new sessions per scenario")
     s.add_argument("--only", default="", help="trust: only the scenarios whose name contains this text")
     s.add_argument("--opencv4-python", default="", help="handeye: a Python with OpenCV 4.x for calibrateHandEye")
+    s.add_argument("--targets", default="ring_a4,checkerboard_a4", help="handeye: targets, comma-separated")
+    s.add_argument("--arm-systematic-mm", type=float, default=0.25,
+                   help="handeye: amplitude of the arm's systematic position error field (0: random arm noise only)")
     s.add_argument("--out", default="out/study")
     s.add_argument("--views", type=int, default=None, help="default: 15 (lenses: 20 per lens)")
     s.add_argument("--seed", type=int, default=1)

@@ -3,10 +3,13 @@ session, a robot pose that contradicts the images, POSES.yaml, the CLI."""
 
 from __future__ import annotations
 
+import json
 import os
+import re
 import shutil
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -16,6 +19,8 @@ import yaml
 
 from pascal_calib_ros.calibrate.handeye import (
     HandEyeError,
+    HandEyeOptions,
+    arm_field_covariance,
     calibrate_hand_eye,
     hand_eye_closed_form,
     park_martin,
@@ -26,6 +31,7 @@ from pascal_calib_ros.detect.detection import Detection
 from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.geometry.transform import Transform
 from pascal_calib_ros.io.hand_eye_yaml import PosesYamlError, read_poses_yaml, write_poses_yaml
+from pascal_calib_ros.io.report import PAGES
 from pascal_calib_ros.sim.arm import ArmSession, ArmSpec, hand_eye_errors, simulate_arm_session
 from pascal_calib_ros.targets import Target
 
@@ -171,6 +177,21 @@ def test_cli_handeye_end_to_end(arm_session, tmp_path: Path) -> None:
     bad = run("handeye", "--target", "ring_a4", "--poses", str(tmp_path / "nope.yaml"), "--mode", "eye_in_hand",
               "-o", str(out), str(imgs))
     assert bad.returncode == 2 and "cannot read" in bad.stderr
+    # without the arm-accuracy prior: a smaller sigma, said so; a bad prior is refused before any work
+    r0 = run("handeye", "--target", "ring_a4", "--poses", str(tmp_path / "poses.yaml"), "--mode", "eye_in_hand",
+             "-o", str(tmp_path / "cam0.yaml"), "--arm-accuracy-mm", "0", "--report", str(tmp_path / "rep"), str(imgs))
+    assert r0.returncode == 0 and "std without the arm's systematic error" in r0.stdout, r0.stdout + r0.stderr
+    # the report has the hand-eye page and numbers
+    rep = json.loads((tmp_path / "rep" / "report.json").read_text())["hand_eye"]
+    assert rep["mode"] == "eye_in_hand" and rep["arm_accuracy"]["mm"] == 0.0 and rep["views_used"] == 6
+    assert len(rep["per_view"]) == 7 and sum(not v["used"] for v in rep["per_view"]) == 1
+    assert len(re.findall(rb"/Type /Page\b", (tmp_path / "rep" / "report.pdf").read_bytes())) == PAGES + 1
+    doc0 = yaml.safe_load((tmp_path / "hand_eye.yaml").read_text())
+    assert np.all(np.array(doc0["translation_std_mm"]) < np.array(doc["translation_std_mm"]))
+    assert "of the std, the arm's assumed systematic error (0.2 mm over 0.3 m)" in r.stdout
+    bad = run("handeye", "--target", "ring_a4", "--poses", str(tmp_path / "poses.yaml"), "--mode", "eye_in_hand",
+              "-o", str(out), "--arm-accuracy-mm", "-1", str(imgs))
+    assert bad.returncode == 2 and "--arm-accuracy-mm" in bad.stderr
 
 
 def test_grid_labelled_turned_in_some_views_is_relabelled_through_the_chain() -> None:
@@ -239,3 +260,27 @@ def test_checkerboard_hand_eye_keeps_its_corner_residuals(tmp_path: Path) -> Non
     data = json.loads(write_report(cal, dets, tmp_path).json.read_text())
     assert sum(map(sum, data["residuals"]["regional"]["count"])) == len(r)
     assert len(data["residuals"]["per_view_rms_px"]) == res.views_used
+
+
+def test_arm_accuracy_share_is_the_spread_of_x_under_drawn_arm_errors(ring_target: Target, arm_session) -> None:
+    """The arm-accuracy share of sigma(X) (a Gaussian-process position error field, carried through
+    the joint estimate's linearisation) matches the spread of X when such fields are drawn and added to
+    the reported tool positions (Monte Carlo, 12 draws; the images unchanged)."""
+    s, dets = arm_session
+    he = HandEyeOptions("eye_in_hand", 0.1, 0.01, estimate_robot_noise=False, jackknife_groups=0,
+                        arm_accuracy_mm=0.5, arm_accuracy_length=0.2)
+    ref = calibrate_hand_eye(dets, s.robot_poses, ring_target, "eye_in_hand", he=he)
+    assert np.all(ref.arm_share_mm > 0) and np.all(ref.arm_share_mm <= ref.translation_std_mm)
+    assert "arm's assumed systematic error (0.5 mm over 0.2 m)" in ref.summary()
+    pos = np.array([g.translation for g in s.robot_poses])
+    L = np.linalg.cholesky(arm_field_covariance(pos, 0.5e-3, 0.2) + 1e-18 * np.eye(3 * len(pos)))
+    rng = np.random.default_rng(5)
+    shifts = []
+    for _ in range(12):
+        e = (L @ rng.normal(size=3 * len(pos))).reshape(-1, 3)
+        moved = [Transform(g.rotation, g.translation + d) for g, d in zip(s.robot_poses, e, strict=True)]
+        r = calibrate_hand_eye(dets, moved, ring_target, "eye_in_hand", he=replace(he, arm_accuracy_mm=0.0))
+        shifts.append(1000 * (r.hand_eye.translation - ref.hand_eye.translation))
+    spread = np.sqrt(np.mean(np.square(shifts), 0))
+    ratio = np.linalg.norm(spread) / np.linalg.norm(ref.arm_share_mm)
+    assert 0.6 < ratio < 1.6, (spread, ref.arm_share_mm)

@@ -120,6 +120,9 @@ def test_arm_session_capture_and_hand_eye(tmp_path: Path, arm_bag: tuple[Path, o
         r = client.call_trigger("/pascal_calib/calibrate", timeout=120)
         assert r.success, f"{r.message}\n{cal.log()}"
         assert r.message.startswith("hand_eye eye_in_hand: tool0 -> camera_optical_frame t=[") and "std=[" in r.message
+        share = re.search(r"std=\[([^\]]+)\] mm \(arm accuracy share \[([^\]]+)\] mm\)", r.message)
+        assert share, r.message  # the default arm accuracy's share: part of the std, never more
+        assert all(0 < float(a) <= float(s) for s, a in zip(share[1].split(","), share[2].split(","), strict=True))
         used = re.search(r"views_used=(\d+)/(\d+)", r.message)
         assert used and int(used[2]) == len(stored) and int(used[1]) >= 5, r.message
         # received in this process (late subscribers: transient local)

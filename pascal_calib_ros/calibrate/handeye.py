@@ -95,6 +95,11 @@ class HandEyeOptions:
     # "hold": K and D from the images alone, held in the chain refinement (the chain informs X, Y and the poses
     # only; the intrinsics' uncertainty is propagated into the sigmas of X and Y); "joint": estimated with the chain
     intrinsics: str = "hold"
+    # the arm's systematic position error, which no session can measure (a smooth field over the workspace: a
+    # Gaussian process, per base axis, of this standard deviation and correlation length); its share of the
+    # sigmas of X and Y is added (0: left out). A prior from the arm's absolute accuracy, not a measurement
+    arm_accuracy_mm: float = 0.2
+    arm_accuracy_length: float = 0.3  # m
 
 
 @dataclass
@@ -115,6 +120,10 @@ class HandEyeResult:
     target_std_mm: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     target_std_deg: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     start_K: np.ndarray | None = None  # K of the plain intrinsic calibration (before the joint estimate)
+    arm_share_mm: np.ndarray = field(default_factory=lambda: np.zeros(3))  # of translation_std_mm: the arm prior's
+    arm_share_deg: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    arm_accuracy_mm: float = 0.0  # the prior used (HandEyeOptions.arm_accuracy_mm / _length)
+    arm_accuracy_length: float = 0.0
 
     @property
     def parent_frame_role(self) -> str:
@@ -132,6 +141,10 @@ class HandEyeResult:
                  + "   std about x y z [deg]  " + " ".join(f"{v:.4f}" for v in s_r),
                  f"  target in the {'base' if self.mode == 'eye_in_hand' else 'tool'} frame: "
                  f"t = [{', '.join(f'{v:+.5f}' for v in self.target.translation)}] m",
+                 (f"  of the std, the arm's assumed systematic error ({self.arm_accuracy_mm:g} mm over "
+                  f"{self.arm_accuracy_length:g} m): " + " ".join(f"{v:.3f}" for v in self.arm_share_mm) + " mm, "
+                  + " ".join(f"{v:.4f}" for v in self.arm_share_deg) + " deg"
+                  if self.arm_accuracy_mm > 0 else "  std without the arm's systematic error (arm accuracy 0)"),
                  f"views used: {self.views_used}/{len(self.per_view)}   RMS {self.rms_px:.4f} px   "
                  f"robot pose error the data imply: {self.robot_error_mm:.3f} mm, {self.robot_error_deg:.4f} deg "
                  "per axis",
@@ -464,6 +477,10 @@ def calibrate_hand_eye(dets: list[Detection], robot_poses: Sequence[Transform | 
             raise HandEyeError(f"robot pose {k} is a {type(p).__name__}, not a Transform")
     if he.robot_sigma_mm <= 0 or he.robot_sigma_deg <= 0:
         raise HandEyeError("the robot's pose sigmas must be positive")
+    if not (np.isfinite(he.arm_accuracy_mm) and he.arm_accuracy_mm >= 0 and np.isfinite(he.arm_accuracy_length)
+            and he.arm_accuracy_length > 0):
+        raise HandEyeError(f"arm accuracy {he.arm_accuracy_mm} mm over {he.arm_accuracy_length} m: give a "
+                           "non-negative accuracy and a positive correlation length")
     dets = [d if p is not None or not d.ok else replace(d, reason="no robot pose for this view")
             for d, p in zip(dets, robot_poses, strict=True)]
     with_pose = [k for k, d in enumerate(dets) if d.ok]
@@ -583,7 +600,7 @@ def calibrate_hand_eye(dets: list[Detection], robot_poses: Sequence[Transform | 
 
     X, Y, Cf, sol_info = _refine_chain(views, M, X0, Y0, C0, cal, options, he, target, origin)
     (K, D, std, rms, offsets, view_rms, edge_res, sig_t, sig_r, sx_t, sx_r, sy_t, sy_r, success, intr_sd,
-     corner_res) = sol_info
+     corner_res, arm_sd) = sol_info
     if he.jackknife_groups >= 2 and len(views) >= 2 * he.jackknife_groups:
         # the jackknife holds the intrinsics when they are held ("hold"): their share is added after
         jx_t, jx_r, jy_t, jy_r = _jackknife(views, M, X, Y, Cf, replace(cal, K=K, D=D), options, he, target,
@@ -591,8 +608,9 @@ def calibrate_hand_eye(dets: list[Detection], robot_poses: Sequence[Transform | 
         sx_t, sx_r = np.maximum(sx_t, jx_t), np.maximum(sx_r, jx_r)
         sy_t, sy_r = np.maximum(sy_t, jy_t), np.maximum(sy_r, jy_r)
     ix_t, ix_r, iy_t, iy_r = intr_sd
-    sx_t, sx_r = np.hypot(sx_t, ix_t), np.hypot(sx_r, ix_r)
-    sy_t, sy_r = np.hypot(sy_t, iy_t), np.hypot(sy_r, iy_r)
+    ax_t, ax_r, ay_t, ay_r = arm_sd
+    sx_t, sx_r = np.sqrt(sx_t**2 + ix_t**2 + ax_t**2), np.sqrt(sx_r**2 + ix_r**2 + ax_r**2)
+    sy_t, sy_r = np.sqrt(sy_t**2 + iy_t**2 + ay_t**2), np.sqrt(sy_r**2 + iy_r**2 + ay_r**2)
     mm, deg = chain_disagreement(M, X, Y, Cf, mode)
     for j, k in enumerate(kept):
         reports[k].used, reports[k].reason = True, ""
@@ -620,7 +638,7 @@ def calibrate_hand_eye(dets: list[Detection], robot_poses: Sequence[Transform | 
         warnings.append("a single ring: the target's rotation about its axis is not observable (reported "
                         "arbitrarily); X is not affected")
     return HandEyeResult(calib, mode, X, sx_t, sx_r, Y @ to_yaml, len(kept), rms, sig_t, sig_r, per_view, warnings,
-                         X0, sy_t, sy_r, cal.K.copy())
+                         X0, sy_t, sy_r, cal.K.copy(), ax_t, ax_r, he.arm_accuracy_mm, he.arm_accuracy_length)
 
 
 def _complete_ring_poses(M: list[Transform], X: Transform, Y: Transform, C: list[Transform]) -> list[Transform]:
@@ -769,6 +787,8 @@ def _refine_chain(views: list[ViewData], M: list[Transform], X0: Transform, Y0: 
         cov_i = np.zeros_like(cov)
     sx_t, sx_r = stds(0, xy[0:3])
     sy_t, sy_r = stds(6, xy[6:9])
+    cov_a = arm_field_share(prob, x, intr0, sol.normal_matrix, M, he) if he.arm_accuracy_mm > 0 else np.zeros_like(cov)
+    arm_sd = (*stds(0, xy[0:3], cov_a), *stds(6, xy[6:9], cov_a))
     # the intrinsics' share (zero when they are estimated with the chain: then in cov)
     ix_t, ix_r = stds(0, xy[0:3], cov_i)
     iy_t, iy_r = stds(6, xy[6:9], cov_i)
@@ -796,7 +816,45 @@ def _refine_chain(views: list[ViewData], M: list[Transform], X0: Transform, Y0: 
     Y = Transform.from_rotvec(xy[6:9], xy[9:12])
     Cf = [Transform.from_rotvec(p[:3], p[3:6]) for p in poses]
     return X, Y, Cf, (K, D, std, rms, offsets, view_rms, edge_res, err_mm, err_deg, sx_t, sx_r, sy_t, sy_r,
-                      bool(sol.success), (ix_t, ix_r, iy_t, iy_r), corner_res)
+                      bool(sol.success), (ix_t, ix_r, iy_t, iy_r), corner_res, arm_sd)
+
+
+def arm_field_covariance(positions: np.ndarray, sigma_m: float, length_m: float) -> np.ndarray:
+    """(3V, 3V) covariance of an arm's systematic position error at the tool positions ``positions``
+    (V, 3): per base axis an independent Gaussian process with the squared-exponential kernel
+    sigma^2 exp(-|p_i - p_j|^2 / (2 L^2)) (Rasmussen & Williams, "Gaussian Processes for Machine
+    Learning", 2006, ch. 4), the smooth field that link-length and joint-offset errors leave over a
+    workspace. Rows ordered view-major (view i, axis a -> 3 i + a)."""
+    p = np.asarray(positions, float).reshape(-1, 3)
+    d2 = np.sum((p[:, None, :] - p[None, :, :]) ** 2, -1)
+    return np.kron(sigma_m**2 * np.exp(-d2 / (2 * length_m**2)), np.eye(3))
+
+
+def arm_field_share(prob: ChainProblem, x: np.ndarray, intr0: np.ndarray, A: np.ndarray, M: list[Transform],
+                    he: HandEyeOptions) -> np.ndarray:
+    """The parameters' covariance from the arm's systematic position error (:func:`arm_field_covariance`,
+    ``he.arm_accuracy_mm`` over ``he.arm_accuracy_length``). The estimate moves with an error e of the
+    reported tool positions by dx = -A^+ J_c^T (dr_c / de) e (A = J^T W J of the solution, J_c the
+    chain rows' Jacobian, their weight 1); its covariance is S Sigma_e S^T. What the field does
+    uniformly (a shift of every pose) moves only the target's pose; what varies over the poses
+    reaches X."""
+    xy = prob.chain_params(x)
+    poses = np.array(prob.unpack(x, intr0)[2])
+    mode = "eye_in_hand" if prob.chain.eye_in_hand else "eye_to_hand"
+    G = [chain_pose(m, mode) for m in M]  # the tool poses (chain_pose is its own inverse)
+    nv, h = len(G), 1e-6
+    D = np.zeros((6 * nv, 3 * nv))
+    for a in range(3):
+        e = np.zeros(3)
+        e[a] = h
+        moved = [[chain_pose(Transform(g.rotation, g.translation + sgn * e), mode) for g in G] for sgn in (1, -1)]
+        d = (prob.chain_residuals(xy, poses, moved[0]) - prob.chain_residuals(xy, poses, moved[1])) / (2 * h)
+        for i in range(nv):
+            D[6 * i:6 * i + 6, 3 * i + a] = d[i]
+    S = -np.linalg.pinv(A) @ (prob.chain_dense_jacobian(xy, poses).T @ D)
+    cov_e = arm_field_covariance(np.array([g.translation for g in G]), he.arm_accuracy_mm / 1000,
+                                 he.arm_accuracy_length)
+    return S @ cov_e @ S.T
 
 
 __all__ = ["HAND_EYE_MODES", "HandEyeError", "HandEyeOptions", "HandEyeResult", "ViewReport", "calibrate_hand_eye",

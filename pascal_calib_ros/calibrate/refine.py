@@ -429,12 +429,17 @@ class ChainProblem(Problem):
     def chain_params(self, x: np.ndarray) -> np.ndarray:
         return x[self.n_base:self.n_base + self.N_CHAIN]
 
-    def chain_deltas(self, xy: np.ndarray, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Per view the disagreement G_i^-1 G'_i as (rotation vectors (V, 3) rad, translations (V, 3) m)."""
+    def chain_deltas(self, xy: np.ndarray, poses: np.ndarray, chain: list[Any] | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
+        """Per view the disagreement G_i^-1 G'_i as (rotation vectors (V, 3) rad, translations (V, 3) m);
+        ``chain``: other chain poses M_i than the problem's (a perturbed arm)."""
         RX, tX = Rotation.from_rotvec(xy[0:3]), xy[3:6]
         RY, tY = Rotation.from_rotvec(xy[6:9]), xy[9:12]
         RC, tC = Rotation.from_rotvec(poses[:, :3]), poses[:, 3:6]
-        RM, tM = self._RM, self._tM
+        if chain is None:
+            RM, tM = self._RM, self._tM
+        else:
+            RM, tM = Rotation.concatenate([m.rotation for m in chain]), np.array([m.translation for m in chain])
         assert RM is not None
         if self.chain.eye_in_hand:  # M^-1 Y C^-1 X^-1
             RMi = RM.inv()
@@ -450,9 +455,9 @@ class ChainProblem(Problem):
             R3, t3 = R2 * RYi, t2 - (R2 * RYi).apply(tY)
         return R3.as_rotvec().reshape(-1, 3), np.asarray(t3).reshape(-1, 3)
 
-    def chain_residuals(self, xy: np.ndarray, poses: np.ndarray) -> np.ndarray:
+    def chain_residuals(self, xy: np.ndarray, poses: np.ndarray, chain: list[Any] | None = None) -> np.ndarray:
         """(V, 6) normalised chain residuals (rotation then translation), times ``scale``."""
-        rv, t = self.chain_deltas(xy, poses)
+        rv, t = self.chain_deltas(xy, poses, chain)
         c = self.chain
         return np.concatenate([rv / c.sigma_rot, t / c.sigma_trans], 1) * c.scale
 
@@ -465,6 +470,12 @@ class ChainProblem(Problem):
         f = np.concatenate([f, fp.ravel()])
         if not jac:
             return f, Jg, Jv
+        Jgp, Jvp = self.chain_jacobian(xy, poses)
+        return f, np.concatenate([Jg, Jgp]), np.concatenate([Jv, Jvp])
+
+    def chain_jacobian(self, xy: np.ndarray, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The chain rows' Jacobian by central differences: (6V, ng) over the global parameters and
+        (6V, per_view) over the pose of each row's own view."""
         h = 1e-6
         nv = self.nv
         Jgp = np.zeros((6 * nv, self.ng))
@@ -478,7 +489,17 @@ class ChainProblem(Problem):
             e = np.zeros(6)
             e[k] = h
             Jvp[:, :, k] = (self.chain_residuals(xy, poses + e) - self.chain_residuals(xy, poses - e)) / (2 * h)
-        return f, np.concatenate([Jg, Jgp]), np.concatenate([Jv, Jvp.reshape(6 * nv, self.per_view)])
+        return Jgp, Jvp.reshape(6 * nv, self.per_view)
+
+    def chain_dense_jacobian(self, xy: np.ndarray, poses: np.ndarray) -> np.ndarray:
+        """The chain rows' full Jacobian (6V, parameters)."""
+        Jgp, Jvp = self.chain_jacobian(xy, poses)
+        J = np.zeros((6 * self.nv, self.ng + self.per_view * self.nv))
+        J[:, : self.ng] = Jgp
+        for i in range(self.nv):
+            s = self.ng + i * self.per_view
+            J[6 * i:6 * i + 6, s:s + self.per_view] = Jvp[6 * i:6 * i + 6]
+        return J
 
     def robust_weights(self, f: np.ndarray, loss_scale: float) -> np.ndarray:
         w = np.ones(len(f))

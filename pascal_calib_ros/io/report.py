@@ -13,7 +13,10 @@ Pages of the PDF, in the order a person asks:
    hand);
 6. the lens model where it holds (the distortion field over the observed field plus a margin, the
    region where the model is invertible and monotonic);
-7. projection uncertainty (mrcal's, at the median target distance).
+7. projection uncertainty (mrcal's, at the median target distance);
+8. with a hand-eye result (``pascal-calib handeye --report``, the node with ``hand_eye``): the
+   transform X with its sigma (and the arm-accuracy share of it), the arm's pose error the data
+   imply, and per view the disagreement between the robot chain and the images.
 The numbers come from :mod:`..calibrate.residual_stats` and :mod:`..calibrate.diagnostics`.
 """
 
@@ -60,7 +63,7 @@ MAX_PLOT_POINTS = 30_000  # residual scatter plots draw at most this many points
 WORST_VIEWS = 3
 MAGNIFY_WORST = 0.04  # the 99th percentile residual of a worst view is drawn this fraction of the image size
 
-PAGES = 7
+PAGES = 7  # 8 with a hand-eye result
 ImageSource = Callable[[str], "np.ndarray | None"]  # view name -> grey image (None: not at hand)
 
 
@@ -429,6 +432,54 @@ def summary_lines(d: ReportData, width: int = 88) -> list[str]:
     return lines
 
 
+def hand_eye_numbers(he: Any) -> dict[str, Any]:
+    """``report.json`` -> ``hand_eye``: X (camera in the parent frame), its sigma and the arm-accuracy
+    share of it, the robot error the data imply, and each view's chain disagreement."""
+    X = he.hand_eye
+    return {"mode": he.mode, "parent_frame_role": he.parent_frame_role,
+            "translation_m": X.translation.tolist(), "rotation_xyzw": X.quat.tolist(),
+            "translation_std_mm": np.asarray(he.translation_std_mm).tolist(),
+            "rotation_std_deg": np.asarray(he.rotation_std_deg).tolist(),
+            "arm_accuracy": {"mm": he.arm_accuracy_mm, "length_m": he.arm_accuracy_length,
+                             "translation_share_mm": np.asarray(he.arm_share_mm).tolist(),
+                             "rotation_share_deg": np.asarray(he.arm_share_deg).tolist()},
+            "robot_error_mm": he.robot_error_mm, "robot_error_deg": he.robot_error_deg,
+            "views_used": he.views_used, "rms_px": he.rms_px,
+            "per_view": [{k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in pv.items()}
+                         for pv in he.per_view]}
+
+
+def panel_hand_eye(ax: Any, he: Any) -> None:
+    """Each view's disagreement between the robot chain and the images (translation mm, rotation
+    deg x 10), beside what the arm's pose error the data imply predicts for it (the norm of three
+    axes: sqrt(3) sigma); views refused by the chain check in red."""
+    pv = he.per_view
+    names = [v["name"] for v in pv]
+    x = np.arange(len(pv))
+    mm = np.array([v.get("disagreement_mm", np.nan) for v in pv], float)
+    deg = np.array([v.get("disagreement_deg", np.nan) for v in pv], float)
+    used = np.array([v["used"] for v in pv], bool)
+    mm, deg10 = np.where(np.isfinite(mm), mm, 0.0), np.where(np.isfinite(deg), 10 * deg, 0.0)
+    # the scale of the used views and of what the arm's error predicts; a refused view's bar is cut there
+    # and its value written on it
+    top = 1.3 * max(float(np.max(np.r_[mm[used], deg10[used], 0.0])),
+                    3 * np.sqrt(3) * he.robot_error_mm, 30 * np.sqrt(3) * he.robot_error_deg, 1e-3)
+    ax.bar(x - 0.2, np.minimum(mm, top), 0.4, color=np.where(used, "tab:blue", "tab:red"), label="translation (mm)")
+    ax.bar(x + 0.2, np.minimum(deg10, top), 0.4, color=np.where(used, "tab:orange", "tab:red"),
+           label="rotation (deg x 10)")
+    for k in np.flatnonzero((mm > top) | (deg10 > top)):
+        ax.text(x[k], 0.97 * top, f"{mm[k]:.1f} mm\n{deg10[k] / 10:.2f} deg", ha="center", va="top", fontsize=6,
+                rotation=90, color="w")
+    ax.set_ylim(0, top)
+    ax.axhline(np.sqrt(3) * he.robot_error_mm, color="tab:blue", ls="--", lw=1,
+               label=f"expected from the arm's error ({he.robot_error_mm:.3f} mm per axis)")
+    ax.axhline(10 * np.sqrt(3) * he.robot_error_deg, color="tab:orange", ls="--", lw=1,
+               label=f"expected from the arm's error ({he.robot_error_deg:.4f} deg per axis)")
+    ax.set_xticks(x, names, rotation=90, fontsize=6)
+    ax.set_title("robot chain vs images per view (red: refused)", fontsize=9)
+    ax.legend(fontsize=7)
+
+
 def _text(ax: Any, lines: list[str], fontsize: float = 8.5) -> None:
     ax.axis("off")
     ax.text(0, 1, "\n".join(lines), va="top", family="monospace", fontsize=fontsize)
@@ -443,8 +494,10 @@ class ReportFiles:
 
 
 def write_report(res: CalibrationResult, dets: list[Detection], out_dir: str | Path,
-                 images: ImageSource | None = None, page_images: bool = False) -> ReportFiles:
-    """Write ``report.pdf`` (:data:`PAGES` pages), ``report.png`` and ``report.json`` into
+                 images: ImageSource | None = None, page_images: bool = False, hand_eye: Any = None
+                 ) -> ReportFiles:
+    """Write ``report.pdf`` (:data:`PAGES` pages, one more with ``hand_eye``, a
+    :class:`~..calibrate.handeye.HandEyeResult`), ``report.png`` and ``report.json`` into
     ``out_dir``; ``images`` gives a view's image by name for the worst-views page; with
     ``page_images`` each page is also written as ``report_page_N.png`` (the README's figures)."""
     import matplotlib
@@ -457,6 +510,8 @@ def write_report(res: CalibrationResult, dets: list[Detection], out_dir: str | P
     out.mkdir(parents=True, exist_ok=True)
     d = report_data(res, dets)
     numbers = report_numbers(d)
+    if hand_eye is not None:
+        numbers["hand_eye"] = hand_eye_numbers(hand_eye)
     (out / "report.json").write_text(json.dumps(numbers, indent=1, default=float))
 
     page_no = 0
@@ -498,6 +553,13 @@ def write_report(res: CalibrationResult, dets: list[Detection], out_dir: str | P
         for panel in (panel_distortion, panel_projection):
             fig, a1 = plt.subplots(1, 1, figsize=(12, 8))
             panel(a1, fig, d)
+            save(fig, pdf)
+        if hand_eye is not None:
+            fig, ax = plt.subplots(1, 2, figsize=(16, 8), gridspec_kw={"width_ratios": [1.1, 1]})
+            lines = [w for line in hand_eye.summary().splitlines()
+                     for w in textwrap.wrap(line, 110, subsequent_indent="      ") or [""]]
+            _text(ax[0], ["hand-eye calibration", "", *lines], fontsize=7)
+            panel_hand_eye(ax[1], hand_eye)
             save(fig, pdf)
 
     fig, ax = plt.subplots(2, 3, figsize=(20, 11))

@@ -132,6 +132,11 @@ PARAMS = (
     Param("camera_frame", "camera_optical_frame", "child frame of the published hand-eye transform"),
     Param("hand_eye", "", "'' (off) | eye_in_hand | eye_to_hand: ~/calibrate also solves hand-eye",
           choices=("", "eye_in_hand", "eye_to_hand")),
+    Param("arm_accuracy_mm", 0.2, "the arm's systematic position error (absolute accuracy over the session's "
+          "workspace, per axis) that no session can measure: its share is added to the hand-eye std; 0: left out",
+          float_range=(0.0, 100.0)),
+    Param("arm_accuracy_length", 0.3, "metres over which that error changes (its correlation length)",
+          float_range=(0.01, 100.0)),
 )
 READ_ONLY = {"transport", "robot_pose_topic"}
 # a frame waits at most this long (wall time, or pose_max_age if longer) for the robot pose published
@@ -596,12 +601,14 @@ class CalibrationNode(Node):
                           f"(robot poses received on {self.resolve_topic_name(self.pose_topic)}: "
                           f"{self.poses.received}{'; ' + self.pose_error if self.pose_error else ''})")
         try:
-            from ..calibrate.handeye import HandEyeError, calibrate_hand_eye
+            from ..calibrate.handeye import HandEyeError, HandEyeOptions, calibrate_hand_eye
             from ..io.hand_eye_yaml import write_hand_eye_yaml
         except ImportError as e:
             return refuse(f"the hand-eye solver is not available ({e})")
         try:
-            he = calibrate_hand_eye(views, robot_poses, target, mode, opts)
+            he_opts = HandEyeOptions(mode, arm_accuracy_mm=float(self.p("arm_accuracy_mm")),
+                                     arm_accuracy_length=float(self.p("arm_accuracy_length")))
+            he = calibrate_hand_eye(views, robot_poses, target, mode, opts, he_opts)
         except HandEyeError as e:
             return refuse(str(e))
         except CalibrationError as e:
@@ -619,7 +626,7 @@ class CalibrationNode(Node):
                                  str(self.p("camera_frame")))
         parent, target_frame = (tool, base) if mode == "eye_in_hand" else (base, tool)
         info = camera_info_msg(res, str(self.p("camera_name")), self._header())
-        path = self._write_outputs(res, views)
+        path = self._write_outputs(res, views, he)
         he_path = (path.parent / f"{self.p('camera_name')}_hand_eye.yaml"
                    if path.parent == Path.home() / ".ros" / "camera_info" else path.parent / "hand_eye.yaml")
         try:
@@ -638,6 +645,7 @@ class CalibrationNode(Node):
         r.x, r.y, r.z, r.w = (float(v) for v in q)
         line = (f"hand_eye {mode}: {parent} -> {cam_frame} t=[{', '.join(f'{v:.5f}' for v in X.translation)}] m "
                 f"std=[{', '.join(f'{v:.3f}' for v in he.translation_std_mm)}] mm "
+                f"(arm accuracy share [{', '.join(f'{v:.3f}' for v in he.arm_share_mm)}] mm) "
                 f"q=[{', '.join(f'{v:.6f}' for v in q)}] "
                 f"rot_std=[{', '.join(f'{v:.4f}' for v in he.rotation_std_deg)}] deg "
                 f"views_used={he.views_used}/{len(views)} rms={he.rms_px:.3f}px "
@@ -655,7 +663,7 @@ class CalibrationNode(Node):
         self.publish_status()
         return True, summary
 
-    def _write_outputs(self, res: CalibrationResult, views: list[Detection]) -> Path:
+    def _write_outputs(self, res: CalibrationResult, views: list[Detection], hand_eye: Any = None) -> Path:
         name = str(self.p("camera_name"))
         out_dir = str(self.p("output_dir"))
         path_s = str(self.p("calibration_file"))
@@ -680,7 +688,7 @@ class CalibrationNode(Node):
 
                 frames = Path(out_dir) / "frames"
                 write_report(res, views, out_dir, images=lambda name: read_grey(frames / f"{name}.png")
-                             if (frames / f"{name}.png").exists() else None)
+                             if (frames / f"{name}.png").exists() else None, hand_eye=hand_eye)
             except Exception as e:  # a report must never cost the calibration
                 self.get_logger().warn(f"report not written: {type(e).__name__}: {e}")
         return path
