@@ -97,6 +97,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="inner corners along x and y (kuka_1: 28 17, kuka_2: 24 17)")
     ap.add_argument("--opencv4-python", default="")
     ap.add_argument("--max-views", type=int, default=0, help="use only the first N views (0: all)")
+    ap.add_argument("--splits", type=int, default=1, help="also the median over this many splits into halves "
+                                                            "(even/odd, then seeded random halves)")
     a = ap.parse_args(argv)
     a.out.mkdir(parents=True, exist_ok=True)
     t_start = time.perf_counter()
@@ -113,23 +115,30 @@ def main(argv: list[str] | None = None) -> int:
         dets.append(detect_target(im, target, name=p.name))
     ok = [k for k, d in enumerate(dets) if d.corners is not None]
     print(f"{len(ok)}/{len(dets)} views with the board ({time.perf_counter() - t_start:.0f} s)", flush=True)
-    halves = {"even": [k for k in ok if k % 2 == 0], "odd": [k for k in ok if k % 2 == 1]}
-    res: dict[str, dict[str, Transform]] = {}
-    sig: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     h, w = ims[0].shape[:2]
-    for tag, sel in halves.items():
-        res[tag] = {}
-        try:
-            r = calibrate_hand_eye([dets[k] for k in sel], [poses[k] for k in sel], target, "eye_in_hand")
-            res[tag]["ours"] = r.hand_eye
-            sig[tag] = (r.translation_std_mm, r.rotation_std_deg)
-            print(f"--- half {tag} ({len(sel)} views)\n{r.summary()}", flush=True)
-        except CalibrationError as e:
-            print(f"half {tag}: ours failed: {e}")
-        if a.opencv4_python:
-            corners = [np.asarray(dets[k].corners, float) for k in sel]
-            res[tag].update(opencv_half(corners, board.corner_points(), (w, h), [poses[k] for k in sel], a.out,
-                                        tag, a.opencv4_python))
+
+    def split_result(halves: dict[str, list[int]], tag: str, verbose: bool
+                     ) -> tuple[dict[str, dict[str, Transform]], dict[str, tuple[np.ndarray, np.ndarray]]]:
+        res: dict[str, dict[str, Transform]] = {}
+        sig: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        for half, sel in halves.items():
+            res[half] = {}
+            try:
+                r = calibrate_hand_eye([dets[k] for k in sel], [poses[k] for k in sel], target, "eye_in_hand")
+                res[half]["ours"] = r.hand_eye
+                sig[half] = (r.translation_std_mm, r.rotation_std_deg)
+                if verbose:
+                    print(f"--- half {half} ({len(sel)} views)\n{r.summary()}", flush=True)
+            except CalibrationError as e:
+                print(f"half {half}: ours failed: {e}")
+            if a.opencv4_python:
+                corners = [np.asarray(dets[k].corners, float) for k in sel]
+                res[half].update(opencv_half(corners, board.corner_points(), (w, h), [poses[k] for k in sel], a.out,
+                                             f"{tag}_{half}", a.opencv4_python))
+        return res, sig
+
+    halves = {"even": [k for k in ok if k % 2 == 0], "odd": [k for k in ok if k % 2 == 1]}
+    res, sig = split_result(halves, "evenodd", True)
     lines = [f"real data {a.folder.name}: {len(ok)} views, halves even/odd ({len(halves['even'])}, "
              f"{len(halves['odd'])} views), eye in hand; difference of the halves' X",
              f"{'method':<30} {'d mm':>8} {'d deg':>8} {'sig mm':>8} {'sig deg':>8}"]
@@ -147,6 +156,29 @@ def main(argv: list[str] | None = None) -> int:
             s = f" {row['sigma_mm']:8.3f} {row['sigma_deg']:8.4f}"
         rows.append(row)
         lines.append(f"{name:<30} {dmm:8.3f} {ddeg:8.4f}{s}")
+    if a.splits > 1:
+        # more splits: random halves (seeded), the same for every method; median difference per method
+        rng = np.random.default_rng(0)
+        per: dict[str, list[tuple[float, float]]] = {}
+        for j in range(a.splits):
+            if j == 0:
+                rj = res
+            else:
+                perm = rng.permutation(ok)
+                half = len(perm) // 2
+                rj, _ = split_result({"a": sorted(perm[:half]), "b": sorted(perm[half:])}, f"split{j}", False)
+            ka, kb = list(rj)
+            for name in rj[ka]:
+                if name in rj[kb]:
+                    per.setdefault(name, []).append(diff(rj[ka][name], rj[kb][name]))
+        lines.append(f"over {a.splits} splits (even/odd and {a.splits - 1} random halves): median [min-max] of the "
+                     "halves' difference")
+        for name, v in per.items():
+            d = np.array(v)
+            lines.append(f"{name:<30} {np.median(d[:, 0]):8.3f} mm [{d[:, 0].min():.3f}-{d[:, 0].max():.3f}]  "
+                         f"{np.median(d[:, 1]):8.4f} deg [{d[:, 1].min():.4f}-{d[:, 1].max():.4f}]")
+            rows.append({"method": name, "splits": len(v), "median_diff_mm": float(np.median(d[:, 0])),
+                         "median_diff_deg": float(np.median(d[:, 1]))})
     lines.append(f"run time {time.perf_counter() - t_start:.0f} s")
     text = "\n".join(lines)
     print(text)
