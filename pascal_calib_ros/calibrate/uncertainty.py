@@ -211,12 +211,12 @@ def projection_uncertainty(camera_of: Callable[[np.ndarray], Camera],
 
     def q(xx: np.ndarray) -> np.ndarray:
         Rx, tx = view_poses_of(xx)
-        p = np.mean(np.einsum("vij,vnj->vni", Rx, p_loc) + tx[:, None, :], axis=0)
+        p = np.mean(p_loc @ np.transpose(Rx, (0, 2, 1)), axis=0) + np.mean(tx, axis=0)  # mean_i R_i p_i + t_i
         return camera_of(xx).project(p)
 
     active = np.flatnonzero(np.diag(cov) > 0)
     G = _jacobian(lambda xx: q(xx).reshape(-1), x, active).reshape(len(p_cam), 2, len(active))
-    C = np.einsum("nak,kl,nbl->nab", G, cov[np.ix_(active, active)], G)
+    C = (G @ cov[np.ix_(active, active)]) @ np.transpose(G, (0, 2, 1))  # G Sigma G^T per point
     lam = np.linalg.eigvalsh(0.5 * (C + np.transpose(C, (0, 2, 1))))[:, -1]
     sigma = np.full(len(uv), np.nan)
     sigma[ok] = np.sqrt(np.maximum(lam, 0.0))
@@ -240,7 +240,7 @@ def rotation_free_difference_variance(camera_of: Callable[[np.ndarray], Camera],
 
     def q(xx: np.ndarray) -> np.ndarray:
         Rx, _ = view_poses_of(xx)
-        return camera_of(xx).project(np.mean(np.einsum("vij,vnj->vni", Rx, loc), axis=0)).reshape(-1)
+        return camera_of(xx).project(np.mean(loc @ np.transpose(Rx, (0, 2, 1)), axis=0)).reshape(-1)
 
     active = np.flatnonzero(np.diag(cov) > 0)
     G = _jacobian(q, x, active)
