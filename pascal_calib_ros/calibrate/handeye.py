@@ -48,7 +48,9 @@ Steps:
    jackknife over the views (:func:`_jackknife`; it sees view-to-view detection biases and the
    arm's systematic errors that the residuals' covariance does not); with the intrinsics held,
    their share added: the images-only covariance of K, D carried through dx / dtheta =
-   -A_xx^-1 A_xtheta (A the normal matrix of the refinement with the intrinsics free).
+   -A_xx^-1 A_xtheta (A the normal matrix of the refinement with the intrinsics free); and the
+   share of the arm's systematic position error, which no session measures, from a stated prior
+   (``HandEyeOptions.arm_accuracy_mm`` / ``arm_accuracy_length``, :func:`arm_field_share`).
 """
 
 from __future__ import annotations
@@ -835,9 +837,9 @@ def arm_field_share(prob: ChainProblem, x: np.ndarray, intr0: np.ndarray, A: np.
     """The parameters' covariance from the arm's systematic position error (:func:`arm_field_covariance`,
     ``he.arm_accuracy_mm`` over ``he.arm_accuracy_length``). The estimate moves with an error e of the
     reported tool positions by dx = -A^+ J_c^T (dr_c / de) e (A = J^T W J of the solution, J_c the
-    chain rows' Jacobian, their weight 1); its covariance is S Sigma_e S^T. What the field does
-    uniformly (a shift of every pose) moves only the target's pose; what varies over the poses
-    reaches X."""
+    chain rows' Jacobian, their weight 1); its covariance is S Sigma_e S^T. A uniform shift of every
+    tool position moves the target's pose (eye in hand) or X itself (eye to hand: the camera sees
+    the target where it is, the arm reports it elsewhere); what varies over the poses bends X."""
     xy = prob.chain_params(x)
     poses = np.array(prob.unpack(x, intr0)[2])
     mode = "eye_in_hand" if prob.chain.eye_in_hand else "eye_to_hand"
