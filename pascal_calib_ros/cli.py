@@ -224,9 +224,10 @@ def cmd_handeye(args: argparse.Namespace) -> int:
     if target is None:
         return EXIT_INPUT
     params = DetectionParams.for_lens(lens_model(args.distortion).wide, gamma=args.gamma, max_blur=args.max_blur)
-    if not (args.arm_accuracy_mm >= 0 and args.arm_accuracy_length > 0):  # NaN fails too
-        print(f"error: --arm-accuracy-mm {args.arm_accuracy_mm} --arm-accuracy-length {args.arm_accuracy_length}: "
-              "give an accuracy >= 0 mm and a length > 0 m", file=sys.stderr)
+    he = HandEyeOptions(args.mode, args.robot_sigma_mm, args.robot_sigma_deg, not args.fixed_robot_sigma,
+                        arm_accuracy_mm=args.arm_accuracy_mm, arm_accuracy_length=args.arm_accuracy_length)
+    if he.arm_accuracy_problem():  # before any work
+        print(f"error: --arm-accuracy-mm / --arm-accuracy-length: {he.arm_accuracy_problem()}", file=sys.stderr)
         return EXIT_INPUT
     if args.bag and (args.poses or args.images):
         print("error: give either --bag BAG or --poses POSES.yaml IMAGES..., not both", file=sys.stderr)
@@ -260,8 +261,6 @@ def cmd_handeye(args: argparse.Namespace) -> int:
         robot = [poses.get(p.name) for p in paths]
         pose_source = Path(args.poses).name
     opts = CalibrationOptions(method=args.method or "", distortion=args.distortion, zero_skew=not args.skew)
-    he = HandEyeOptions(args.mode, args.robot_sigma_mm, args.robot_sigma_deg, not args.fixed_robot_sigma,
-                        arm_accuracy_mm=args.arm_accuracy_mm, arm_accuracy_length=args.arm_accuracy_length)
     t0 = time.perf_counter()
     try:
         res = calibrate_hand_eye(dets, robot, target, args.mode, opts, he)
@@ -497,7 +496,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the arm's systematic position error per axis over the workspace (absolute accuracy), which "
                         "no session can measure; its share is added to sigma(X) (0: left out)")
     h.add_argument("--arm-accuracy-length", type=float, default=0.3, help="metres over which that error changes")
-    h.add_argument("--report", metavar="DIR", help="write report.pdf (7 pages), report.png and report.json into DIR")
+    h.add_argument("--report", metavar="DIR", help="write report.pdf (8 pages: the camera's 7 and the hand-eye "
+                                                    "page), report.png and report.json into DIR")
     h.add_argument("images", nargs="*", help="image files or folders (with --poses)")
     h.set_defaults(func=cmd_handeye)
 

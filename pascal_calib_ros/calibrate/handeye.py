@@ -103,6 +103,14 @@ class HandEyeOptions:
     arm_accuracy_mm: float = 0.2
     arm_accuracy_length: float = 0.3  # m
 
+    def arm_accuracy_problem(self) -> str:
+        """Why the arm-accuracy prior cannot be used ("" if it can)."""
+        if np.isfinite(self.arm_accuracy_mm) and self.arm_accuracy_mm >= 0 and np.isfinite(self.arm_accuracy_length) \
+                and self.arm_accuracy_length > 0:
+            return ""
+        return (f"arm accuracy {self.arm_accuracy_mm} mm over {self.arm_accuracy_length} m: give a finite accuracy "
+                ">= 0 mm and a finite correlation length > 0 m")
+
 
 @dataclass
 class HandEyeResult:
@@ -479,10 +487,8 @@ def calibrate_hand_eye(dets: list[Detection], robot_poses: Sequence[Transform | 
             raise HandEyeError(f"robot pose {k} is a {type(p).__name__}, not a Transform")
     if he.robot_sigma_mm <= 0 or he.robot_sigma_deg <= 0:
         raise HandEyeError("the robot's pose sigmas must be positive")
-    if not (np.isfinite(he.arm_accuracy_mm) and he.arm_accuracy_mm >= 0 and np.isfinite(he.arm_accuracy_length)
-            and he.arm_accuracy_length > 0):
-        raise HandEyeError(f"arm accuracy {he.arm_accuracy_mm} mm over {he.arm_accuracy_length} m: give a "
-                           "non-negative accuracy and a positive correlation length")
+    if he.arm_accuracy_problem():
+        raise HandEyeError(he.arm_accuracy_problem())
     dets = [d if p is not None or not d.ok else replace(d, reason="no robot pose for this view")
             for d, p in zip(dets, robot_poses, strict=True)]
     with_pose = [k for k, d in enumerate(dets) if d.ok]
