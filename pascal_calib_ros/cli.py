@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from .calibrate.pipeline import METHODS, CalibrationError, CalibrationOptions, CalibrationResult, calibrate
-from .calibrate.refine import DISTORTION_MODELS, SHAPE_CHOICES
+from .calibrate.refine import DISTORTION_MODELS, OUTLIER_K, SHAPE_CHOICES
 from .detect.detection import Detection, DetectionParams
 from .detect.target_detector import detect_target
 from .geometry.camera import rectified_projection
@@ -77,7 +77,12 @@ def format_summary(res: CalibrationResult) -> str:
     lines = ["views:"]
     for v in res.views:
         if v.used:
-            extra = f"edge rms {v.rms:.3f} px, edge offset {v.edge_offset:+.3f} px" if np.isfinite(v.rms) else ""
+            extra = ""
+            if np.isfinite(v.rms):
+                extra = (f"edge rms {v.rms:.3f} px, edge offset {v.edge_offset:+.3f} px" if res.edge_count(v)
+                         else f"corner rms {v.rms:.3f} px")
+            if v.rejections():
+                extra += f"; {v.rejections()}"
             lines.append(f"  used      {v.name}  {extra}")
         else:
             lines.append(f"  rejected  {v.name}  {v.reason}")
@@ -87,9 +92,10 @@ def format_summary(res: CalibrationResult) -> str:
         return f"{value:.3f} +- {s[name]:.3f}" if name in s else f"{value:.3f}"
 
     lines += [
-        f"method: {res.method}{' + refinement' if res.refined and res.method != 'zhang' else ''}"
+        f"method: {res.method}{' + refinement' if res.refinement is not None else ''}"
         f"    views used: {res.n_used}/{len(res.views)}",
-        f"RMS: {res.rms:.4f} px" + ("  (edge distance)" if res.method != "zhang" else "  (corner reprojection)"),
+        f"RMS: {res.rms:.4f} px" + ("  (edge distance)" if any(len(p) for p in res.edge_points)
+                                    else "  (corner reprojection)"),
         f"degeneracy ratio: {res.degeneracy_ratio:.4f}  (>= 0.05 good, < 0.01 rejected)"
         if np.isfinite(res.degeneracy_ratio) else "degeneracy ratio: n/a",
         f"fx = {pm('fx', K[0, 0])}   fy = {pm('fy', K[1, 1])}",
@@ -140,6 +146,17 @@ def _target_or_none(name: str) -> Target | None:
         return None
 
 
+def _distance(text: str) -> float:
+    """A distance in metres (> 0) or ``inf``, for argparse."""
+    try:
+        d = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a distance in metres nor 'inf'") from None
+    if not d > 0:
+        raise argparse.ArgumentTypeError(f"the distance must be positive (or inf), not {text}")
+    return d
+
+
 def cmd_calibrate(args: argparse.Namespace) -> int:
     target = _target_or_none(args.target)
     if target is None:
@@ -157,7 +174,9 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     t_detect = time.perf_counter() - t0
     opts = CalibrationOptions(method=method, refine=not args.no_refine, distortion=args.distortion,
                               zero_skew=not args.skew, edge_offsets=not args.no_edge_offset,
-                              min_views=args.min_views, target_shape=SHAPE_CHOICES[args.target_shape or ""])
+                              min_views=args.min_views, target_shape=SHAPE_CHOICES[args.target_shape or ""],
+                              loss=args.loss, outlier_k=0.0 if args.no_outlier_rejection else OUTLIER_K,
+                              projection_distance=args.distance)
     t1 = time.perf_counter()
     try:
         res = calibrate(dets, target, opts)
@@ -451,7 +470,15 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--camera-name", default="camera")
     c.add_argument("-o", "--output", required=True, help="output YAML path")
     c.add_argument("--distortion", default="plumb_bob", choices=sorted(DISTORTION_MODELS))
-    c.add_argument("--no-refine", action="store_true", help="closed form only (no distortion)")
+    c.add_argument("--no-refine", action="store_true",
+                   help="closed form only (no distortion); with --method zhang: OpenCV's calibrateCamera as it is")
+    c.add_argument("--loss", default="soft_l1", choices=("soft_l1", "linear"),
+                   help="the refinement's loss: soft_l1 (robust, 0.3 px scale; default) or linear (least squares)")
+    c.add_argument("--no-outlier-rejection", action="store_true",
+                   help="keep every edge point and corner (default: drop those beyond 5 robust sigmas of their view)")
+    c.add_argument("--distance", type=_distance, default=None, metavar="M|inf",
+                   help="evaluate the projection uncertainty for points this far away (m, or inf); default: the "
+                        "median distance from the camera to the observed target's centre")
     c.add_argument("--no-edge-offset", action="store_true", help="do not estimate the per-view edge offset")
     c.add_argument("--skew", action="store_true", help="estimate skew (default: zero skew)")
     c.add_argument("--gamma", type=float, default=1.0, help="linearise with this display gamma before edges")

@@ -164,6 +164,18 @@ class Target:
     def checkerboard(self) -> Checkerboard | None:
         return self.checkerboards[0] if self.checkerboards else None
 
+    @property
+    def local_origin(self) -> tuple[float, float]:
+        """The origin (sheet coordinates, m) of the frame the calibration poses the target in: the
+        first circle's centre, or the middle of the first checkerboard's corners."""
+        if self.circles:
+            return self.circles[0].center
+        if self.checkerboard is not None:
+            c = self.checkerboard.corner_points()
+            mid = (c.min(0) + c.max(0)) / 2
+            return float(mid[0]), float(mid[1])
+        return (0.0, 0.0)
+
     def default_method(self) -> str:
         """The method a user gets without ``--method``."""
         if self.grids:

@@ -67,6 +67,13 @@ def board_session(board_target: Target) -> tuple[Camera, list[np.ndarray], list[
                                               size_range=(0.5, 0.8)))
 
 
+@pytest.fixture(scope="session")
+def checkerboard_session() -> tuple[Camera, list[np.ndarray], list[Detection]]:
+    """10 realistic views of checkerboard_a4 (11 x 8 squares), k1 = -0.2, 800x600."""
+    return _session(resolve_target("checkerboard_a4"), SessionSpec(width=800, height=600, views=10, k1=-0.2,
+                                                                   seed=2))
+
+
 def homography(K: np.ndarray, rvec: np.ndarray, t: np.ndarray) -> np.ndarray:
     R = rodrigues(rvec)
     return K @ np.column_stack([R[:, 0], R[:, 1], t])

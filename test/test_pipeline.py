@@ -1,5 +1,7 @@
 """End-to-end accuracy on realistic renders and the refusals a user must get."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -8,7 +10,7 @@ from pascal_calib_ros.detect.detection import Detection
 from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.geometry.camera import Camera, model_error
 from pascal_calib_ros.sim.render import SensorModel, look_at_pose, render_view
-from pascal_calib_ros.targets import Target
+from pascal_calib_ros.targets import Target, resolve_target
 
 
 def _errors(cam: Camera, K: np.ndarray) -> tuple[float, float, float]:
@@ -116,3 +118,62 @@ def test_fronto_parallel_views_are_refused(ring_target: Target) -> None:
     assert all(d.ok for d in dets)
     with pytest.raises(CalibrationError, match=r"fronto-parallel|positive definite|circular point"):
         calibrate(dets, ring_target)
+
+
+# -- checkerboards through the one refinement (issue 22) -------------------------------------
+def test_checkerboard_goes_through_the_refinement(checkerboard_session) -> None:
+    cam, _, dets = checkerboard_session
+    target = resolve_target("checkerboard_a4")
+    res = calibrate(dets, target)
+    assert res.method == "zhang" and res.refinement is not None and res.projection is not None
+    fx, fy, pp = _errors(cam, res.K)
+    assert fx < 1e-3 and fy < 1e-3 and pp < 1.0, (fx, fy, pp)
+    assert abs(res.K[0, 0] - cam.K[0, 0]) < 3.5 * res.std["fx"] and abs(res.K[0, 2] - cam.K[0, 2]) < 3.5 * res.std["cx"]
+    s = res.projection_summary()
+    assert s is not None and 0 < s["median_px"] < s["worst_px"] < 0.5
+    assert "M-estimator" in res.std_model and "corners kappa" in res.std_model
+    assert "median distance to the target's centre" in res.projection_line()
+    # the distance is the camera's to the board's centre: the poses' translations in the board-centred frame
+    R_t = [res.refinement.view_poses_of(res.refinement.x)[1]]  # type: ignore[union-attr]
+    assert res.projection.distance == pytest.approx(float(np.median(np.linalg.norm(R_t[0], axis=1))), rel=1e-9)
+
+
+def test_zhang_without_refinement_is_opencv_on_the_same_corners(checkerboard_session) -> None:
+    import cv2
+
+    _, _, dets = checkerboard_session
+    target = resolve_target("checkerboard_a4")
+    res = calibrate(dets, target, CalibrationOptions(method="zhang", refine=False))
+    obj = np.c_[target.checkerboard.corner_points(), np.zeros(70)].astype(np.float32)  # type: ignore[union-attr]
+    img = [d.corners.astype(np.float32).reshape(-1, 1, 2) for d in dets if d.corners is not None]
+    rms, K, D, _, _ = cv2.calibrateCamera([obj] * len(img), img, (800, 600), None, None)
+    # OpenCV's own threads make it repeat itself only to about 1e-9
+    assert np.allclose(res.K, K, rtol=1e-7, atol=0) and np.allclose(res.D, D.ravel(), rtol=1e-6, atol=1e-9)
+    assert res.rms == pytest.approx(rms, rel=1e-7) and res.refinement is None and res.projection is None
+    assert "OpenCV" in res.std_model
+
+
+def test_corners_the_detector_rejected_are_left_out_and_counted(checkerboard_session) -> None:
+    cam, _, dets = checkerboard_session
+    target = resolve_target("checkerboard_a4")
+    spoiled = list(dets)
+    c = dets[3].corners.copy()  # type: ignore[union-attr]
+    c[[0, 33]] = np.nan
+    spoiled[3] = replace(dets[3], corners=c)
+    res = calibrate(spoiled, target)
+    assert res.views[3].unmeasured_corners == 2 and "not on a saddle" in res.views[3].rejections()
+    assert len(res.corner_points[3]) == len(c) - 2
+    assert _errors(cam, res.K)[0] < 1e-3
+
+
+def test_projection_uncertainty_at_a_chosen_distance_and_at_infinity(checkerboard_session) -> None:
+    _, _, dets = checkerboard_session
+    target = resolve_target("checkerboard_a4")
+    far = calibrate(dets, target, CalibrationOptions(projection_distance=1e5))
+    inf = calibrate(dets, target, CalibrationOptions(projection_distance=float("inf")))
+    assert inf.projection is not None and far.projection is not None and not inf.projection.default_distance
+    a, b = far.projection_summary(), inf.projection_summary()
+    assert a is not None and b is not None and b["worst_px"] == pytest.approx(a["worst_px"], rel=1e-3)
+    assert "points at infinity" in inf.projection_line()
+    with pytest.raises(CalibrationError, match="distance"):
+        calibrate(dets, target, CalibrationOptions(projection_distance=-1.0))

@@ -99,3 +99,55 @@ def test_unknown_shape_parameter_is_an_error() -> None:
     views, poses = _views(3, 6, noise=0.1, seed=2)
     with pytest.raises(ValueError, match="shape"):
         refine(views, CAM.K, CAM.D, poses, 6, shape=("bulge",))
+
+
+# -- checkerboard corners only (issue 22) ----------------------------------------------------
+BOARD = np.array([(0.025 * i, 0.025 * j) for j in range(7) for i in range(10)]) - [0.1125, 0.075]
+
+
+def _corner_views(n_views: int, noise: float, seed: int) -> tuple[list[ViewData], list[np.ndarray], list[np.ndarray]]:
+    """Views with checkerboard corners and no edge points: (views, true poses, exact corners)."""
+    rng = np.random.default_rng(seed)
+    views, poses, exact = [], [], []
+    for _ in range(n_views):
+        rv = np.r_[rng.uniform(-0.6, 0.6, 2), rng.uniform(-0.3, 0.3)]
+        t = np.r_[rng.uniform(-0.08, 0.08), rng.uniform(-0.06, 0.06), rng.uniform(0.45, 0.6)]
+        q = CAM.project(np.c_[BOARD, np.zeros(len(BOARD))] @ rodrigues(rv).T + t)
+        v = ViewData(np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0), np.zeros(0), np.zeros(0, int))
+        v.corners, v.corner_obj = q + rng.normal(0, noise, q.shape), BOARD.copy()
+        views.append(v)
+        poses.append(np.r_[rv, t])
+        exact.append(q)
+    return views, poses, exact
+
+
+def test_views_with_corners_only_are_refined() -> None:
+    views, poses, _ = _corner_views(8, 0.05, seed=4)
+    K0 = CAM.K * [[1.02, 1, 1], [1, 0.99, 1], [1, 1, 1]]
+    res = refine(views, K0, np.zeros(5), poses, 6, use_offsets=False)
+    assert res.success and res.covariance is not None
+    assert abs(res.K[0, 0] - CAM.K[0, 0]) < 4 * res.std["fx"] < 2.0
+    assert abs(res.K[0, 2] - CAM.K[0, 2]) < 4 * res.std["cx"] < 2.0
+    assert 0.05 < res.rms < 0.09  # the corner reprojection RMS (a 2-vector's length: sqrt(2) x 0.05)
+    assert np.all(res.view_rms > 0) and all(len(r) == 0 for r in res.residuals)
+
+
+@pytest.mark.parametrize("loss_scale", [np.inf, 0.3])
+def test_gross_corner_errors_are_rejected_and_counted(loss_scale: float) -> None:
+    views, poses, _ = _corner_views(8, 0.1, seed=5)
+    clean = refine(views, CAM.K, CAM.D, poses, 6, use_offsets=False, loss_scale=loss_scale)
+    spoiled = [ViewData(v.points, v.centers, v.radii, v.signs, v.circle_ids, v.corners.copy(), v.corner_obj)
+               for v in views]
+    spoiled[2].corners[[5, 17, 30]] += [[2.5, -1.0], [-1.8, 2.0], [0.0, 3.0]]  # three misdetected corners
+    spoiled[6].corners[40] += [1.5, 1.5]
+    kept = refine(spoiled, CAM.K, CAM.D, poses, 6, use_offsets=False, loss_scale=loss_scale, outlier_k=0.0)
+    trimmed = refine(spoiled, CAM.K, CAM.D, poses, 6, use_offsets=False, loss_scale=loss_scale)
+    assert [v.rejected_corners for v in trimmed.views] == [0, 0, 3, 0, 0, 0, 1, 0]
+    assert len(trimmed.views[2].corners) == len(BOARD) - 3 and len(trimmed.corner_residuals[2]) == len(BOARD) - 3
+    # rejected, the bad corners leave the solution and its noise estimate as if they had never been there
+    for k in ("fx", "cx"):
+        assert abs(trimmed.K[0, 0 if k == "fx" else 2] - clean.K[0, 0 if k == "fx" else 2]) < 0.2 * clean.std[k]
+    assert abs(trimmed.std["fx"] / clean.std["fx"] - 1) < 0.05 and trimmed.rms < 1.01 * clean.rms
+    assert kept.rms > 1.5 * clean.rms
+    if not np.isfinite(loss_scale):  # least squares: kept, they pull cx by almost 2 sigma and inflate sigma
+        assert abs(kept.K[0, 2] - clean.K[0, 2]) > 1.5 * clean.std["cx"] and kept.std["fx"] > 1.4 * clean.std["fx"]

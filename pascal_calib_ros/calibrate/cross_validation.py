@@ -171,11 +171,11 @@ def cross_validate(dets: list[Detection], target: Target, options: CalibrationOp
     """Calibrate two interleaved halves of the usable views and compare them (module docstring).
 
     Raises :class:`~.pipeline.CalibrationError` if there are fewer than 2 x ``min_views`` usable
-    views, if a half cannot be calibrated, or if the options give no projection uncertainty
-    (``zhang`` or no refinement)."""
-    if (options.method or target.default_method()) == "zhang" or not options.refine:
+    views, if a half cannot be calibrated, or if the options give no projection uncertainty (no
+    refinement)."""
+    if not options.refine:
         raise CalibrationError("cross-validation compares the halves against their projection uncertainty, which "
-                               "needs the refinement of the circle methods (not zhang, not --no-refine)")
+                               "needs the refinement (not --no-refine)")
     idx_a, idx_b = interleaved_halves(dets)
     n = len(idx_a) + len(idx_b)
     if n < 2 * options.min_views:

@@ -414,10 +414,6 @@ def chain_disagreement(M: list[Transform], X: Transform, Y: Transform, C: list[T
 
 # -- the session -----------------------------------------------------------------------------
 
-def _origin(target: Target) -> tuple[float, float]:
-    return target.circles[0].center if target.circles else (0.0, 0.0)
-
-
 def _camera_pose(det: Detection, target: Target, cam: Camera, origin: tuple[float, float]) -> Transform:
     """Target (local frame) -> camera for one view with the calibrated camera."""
     if det.edges:
@@ -502,7 +498,7 @@ def calibrate_hand_eye(dets: list[Detection], robot_poses: Sequence[Transform | 
     reports = [replace(v) for v in cal.views]
     warnings = list(cal.warnings)
     cam = cal.camera()
-    origin = _origin(target)
+    origin = target.local_origin
     axisymmetric = len({c.center for c in target.circles}) == 1 and not target.checkerboards
     views: list[ViewData] = []
     C: list[Transform] = []

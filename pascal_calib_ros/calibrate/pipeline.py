@@ -15,7 +15,7 @@ from ..detect.detection import Detection
 from ..errors import PascalCalibError
 from ..geometry.camera import Camera
 from ..geometry.circular import CircularPointError
-from ..geometry.iac import DegenerateViewsError
+from ..geometry.iac import DegenerateViewsError, IacSolution
 from ..geometry.lens import DISTORTION_CHOICES, LensModel
 from ..targets import Target
 from .diagnostics import consistent_rays, observed_field_mask
@@ -37,6 +37,7 @@ from .plumbline import (
 )
 from .refine import (
     DISTORTION_MODELS,
+    OUTLIER_K,
     SHAPE_NAMES,
     RefineResult,
     ViewData,
@@ -68,6 +69,11 @@ class CalibrationOptions:
     max_points_per_view: int = 700  # grids: spread over all edges (speed of the refinement)
     outlier_factor: float = 4.0  # drop a view whose RMS exceeds this times the median
     min_views: int = MIN_VIEWS
+    loss: str = "soft_l1"  # the refinement's loss: soft_l1 (robust, scale 0.3 px) or linear (least squares)
+    # reject observations beyond this many robust standard deviations of their view (refine.OUTLIER_K); 0: keep all
+    outlier_k: float = OUTLIER_K
+    # projection uncertainty at this distance (m; inf: at infinity); None: the median distance to the target's centre
+    projection_distance: float | None = None
     # estimate the printed sheet's shape (refine.SHAPE_NAMES: y/x pitch ratio, parabolic warp);
     # targets with circles spread over the sheet (grids) or a checkerboard only
     target_shape: tuple[str, ...] = ()
@@ -80,6 +86,25 @@ class ViewReport:
     reason: str = ""
     rms: float = float("nan")
     edge_offset: float = float("nan")
+    # observations left out: corners the detector's check rejected (not on a saddle), and edge points /
+    # corners the refinement rejected as outliers
+    unmeasured_corners: int = 0
+    rejected_edges: int = 0
+    rejected_corners: int = 0
+
+    def rejections(self) -> str:
+        """'2 corners not on a saddle, 1 corner and 3 edge points rejected as outliers', or ''."""
+        parts = []
+        if self.unmeasured_corners:
+            parts.append(f"{_n(self.unmeasured_corners, 'corner')} rejected by the detector (not on a saddle)")
+        out = [_n(n, what) for n, what in ((self.rejected_corners, "corner"), (self.rejected_edges, "edge point")) if n]
+        if out:
+            parts.append(" and ".join(out) + " rejected as outliers")
+        return ", ".join(parts)
+
+
+def _n(n: int, noun: str) -> str:
+    return f"{n} {noun}{'s' if n != 1 else ''}"
 
 
 @dataclass
@@ -117,6 +142,8 @@ class CalibrationResult:
     # per used view: checkerboard corners (M, 2) and their residuals (observed - predicted)
     corner_points: list[np.ndarray] = field(default_factory=list)
     corner_residuals: list[np.ndarray] = field(default_factory=list)
+    # what the standard deviations in ``std`` are (report.json's std_model)
+    std_model: str = ""
 
     def feature_points(self) -> list[np.ndarray]:
         """Per used view, its edge points and checkerboard corners (N, 2): what the observed field
@@ -163,8 +190,11 @@ class CalibrationResult:
         s = self.projection_summary()
         if s is None or not np.isfinite(s["median_px"]):
             return "projection sigma: not available"
+        where = (f"points at {s['distance_m']:.2f} m" if np.isfinite(s["distance_m"]) else "points at infinity")
+        if self.projection is not None and self.projection.default_distance:
+            where += ", the median distance to the target's centre"
         return (f"projection sigma {s['median_px']:.3f} px median, {s['worst_px']:.3f} px worst in the observed "
-                f"field (points at {s['distance_m']:.2f} m)")
+                f"field ({where})")
 
     @property
     def model(self) -> str:
@@ -173,6 +203,12 @@ class CalibrationResult:
 
     def camera(self) -> Camera:
         return Camera(self.K, self.D, self.width, self.height, self.model)
+
+    def edge_count(self, view: ViewReport) -> int:
+        """The number of edge points a used view contributed (0 for a corner-only view)."""
+        used = [v for v in self.views if v.used]
+        k = next((i for i, v in enumerate(used) if v is view), None)
+        return len(self.edge_points[k]) if k is not None and k < len(self.edge_points) else 0
 
     @property
     def n_used(self) -> int:
@@ -203,75 +239,116 @@ def view_data(det: Detection, target: Target, origin: tuple[float, float], max_p
     vd = ViewData(np.concatenate(pts), np.concatenate(ctr), np.concatenate(rad), np.concatenate(sgn),
                   np.concatenate(ids))
     if use_corners and det.corners is not None and target.checkerboard is not None:
-        vd.corners = det.corners
-        vd.corner_obj = target.checkerboard.corner_points() - np.array(origin)
+        ok = np.all(np.isfinite(det.corners), 1)  # corners the detector's check rejected are NaN
+        vd.corners = det.corners[ok]
+        vd.corner_obj = target.checkerboard.corner_points()[ok] - np.array(origin)
     return vd
 
 
 def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions = CalibrationOptions()
               ) -> CalibrationResult:
     """Calibrate from detections (one per view, rejected ones included for the report): checked
-    options and views, a closed-form start, the refinement (outlier views dropped), views that had
-    no start posed with the refined camera and added, the target's shape if asked for."""
+    options and views, a closed-form start (circular points, grid homographies, or OpenCV's
+    calibration of checkerboard corners), the refinement (outlier observations and views dropped),
+    views that had no start posed with the refined camera and added, the target's shape if asked
+    for."""
     opt = _checked_options(options, target)
     reports, usable = _checked_views(dets, opt)
     w, h = dets[0].width, dets[0].height
-    if opt.method == "zhang":
-        return _zhang(dets, target, opt, reports, w, h)
     lens = DISTORTION_CHOICES[opt.distortion][0]
-    start = closed_form_start(dets, usable, target, opt, reports)
+    if opt.method == "zhang":
+        if not opt.refine:
+            return _zhang(dets, target, opt, reports, w, h)
+        start = zhang_start(dets, usable, target, opt, reports)
+    else:
+        start = closed_form_start(dets, usable, target, opt, reports)
     if not opt.refine:
         if lens.wide:
             raise CalibrationError("the equidistant (fisheye) model needs the refinement: drop --no-refine")
         for k in start.used:
             reports[k].used = True
-        return CalibrationResult(start.sol.K, np.zeros(5), w, h, opt.method, float("nan"), {},
-                                 start.sol.degeneracy_ratio, reports, start.warnings, start.sol.K, False, "none")
-    origin = target.circles[0].center
+        return CalibrationResult(K=start.sol.K, D=np.zeros(5), width=w, height=h, method=opt.method, rms=float("nan"),
+                                 std={}, degeneracy_ratio=start.sol.degeneracy_ratio, views=reports,
+                                 warnings=start.warnings, K_initial=start.sol.K, refined=False, distortion_model="none",
+                                 std_model="none: the closed form has no covariance")
+    origin = target.local_origin
     dof = 6 if (len({c.center for c in target.circles}) > 1 or target.checkerboards) else 5
     views, poses0, idx = _start_poses(dets, start, target, opt, reports, origin, dof)
     if len(idx) < opt.min_views:
         raise CalibrationError(f"only {len(idx)} view(s) gave a pose; need {opt.min_views}")
     D0 = _start_distortion(dets, start, opt, lens.n, w, h)
-    res = refine(views, start.sol.K, D0, poses0, dof, opt.distortion, opt.zero_skew, opt.edge_offsets)
-    res, views, idx = _drop_outlier_views(res, views, idx, reports, opt, dof)
-    res, views, idx = _add_views_without_start(res, views, idx, dets, usable, target, opt, reports, origin, dof)
+    res = _refine(views, start.sol.K, D0, poses0, dof, opt)
+    res, idx = _drop_outlier_views(res, idx, reports, opt, dof)
+    res, idx = _add_views_without_start(res, idx, dets, usable, target, opt, reports, origin, dof)
     warnings = list(start.warnings)
-    shape: dict[str, float] = {}
-    shape_std: dict[str, float] = {}
     shape_effect: dict[str, float] = {}
     if opt.target_shape:
-        res, shape_effect = _estimate_target_shape(res, views, target, opt, origin, dof)
-        shape, shape_std = res.shape, res.shape_std
-        warnings += _shape_warnings(shape, shape_std, shape_effect, res)
+        res, shape_effect = _estimate_target_shape(res, target, opt, origin, dof)
+        warnings += _shape_warnings(res.shape, res.shape_std, shape_effect, res)
     if not np.all(np.isfinite(res.K)) or res.K[0, 0] <= 0 or res.K[1, 1] <= 0:
         raise CalibrationError("refinement diverged; check the target file matches the printed target")
-    for j, k in enumerate(idx):
-        reports[k].used = True
-        reports[k].reason = ""
-        reports[k].rms = float(res.view_rms[j])
-        reports[k].edge_offset = float(res.offsets[j])
+    _report_views(res, idx, dets, reports)
     _check_result(res, w, h, warnings)
     if not lens.wide:
         _refuse_beyond_pinhole_field([dets[k] for k in usable], target, lens, w, h, res.K[0, 0])
-    folded = _check_model_fits(res, views, lens, w, h)
+    folded = _check_model_fits(res, lens, w, h)
     if not lens.wide and res.rms > MISFIT_RMS:
         _refuse_if_fisheye_fits(dets, target, opt, res.rms)
     if folded > 0:
         warnings.append(f"{100 * folded:.3f} % of the edge points lie where the fitted {lens.name} model folds over "
                         "(the image's rim): the model does not hold there; a richer model may")
-    return CalibrationResult(res.K, res.D, w, h, opt.method, res.rms, res.std, start.sol.degeneracy_ratio, reports,
-                             warnings, start.sol.K, True, opt.distortion, res.poses, [v.points for v in views],
-                             res.residuals, [v.circle_ids for v in views], [c.feature for c in target.circles],
-                             shape, shape_std, shape_effect, _projection(res, w, h), res,
-                             [v.corners for v in views], res.corner_residuals).with_model_bias_warning()
+    views = res.views
+    return CalibrationResult(
+        K=res.K, D=res.D, width=w, height=h, method=opt.method, rms=res.rms, std=res.std,
+        degeneracy_ratio=start.sol.degeneracy_ratio, views=reports, warnings=warnings, K_initial=start.sol.K,
+        refined=True, distortion_model=opt.distortion, poses=res.poses, edge_points=[v.points for v in views],
+        edge_residuals=res.residuals, edge_circles=[v.circle_ids for v in views],
+        circle_names=[c.feature for c in target.circles], shape=res.shape if opt.target_shape else {},
+        shape_std=res.shape_std, shape_effect=shape_effect, projection=_projection(res, w, h, opt.projection_distance),
+        refinement=res, corner_points=[v.corners for v in views], corner_residuals=res.corner_residuals,
+        std_model=std_model(res)).with_model_bias_warning()
 
 
-def _projection(res: RefineResult, w: int, h: int) -> ProjectionUncertainty | None:
+def std_model(res: RefineResult) -> str:
+    """What the standard deviations of a refinement are, in words (report.json's ``std_model``)."""
+    loss = "soft-L1 (robust)" if res.robust else "least-squares"
+    kinds = []
+    if res.problem is not None and res.problem.n_edge:
+        kinds.append(f"edge points kappa {res.kappa[0]:.2f}")
+    if res.problem is not None and res.problem.n_corner:
+        kinds.append(f"corners kappa {res.kappa[1]:.2f}")
+    return (f"sandwich covariance of the {loss} M-estimator (psi' in the bread, psi^2 in the meat), per-view noise, "
+            f"correlated residuals ({', '.join(kinds)}), outliers removed")
+
+
+def _refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[np.ndarray], dof: int,
+            opt: CalibrationOptions, **shape: Any) -> RefineResult:
+    """:func:`refine` with the options' distortion, skew, offsets, loss and outlier rejection."""
+    return refine(views, K0, D0, poses0, dof, opt.distortion, opt.zero_skew, opt.edge_offsets,
+                  loss_scale=LOSS_SCALES[opt.loss], outlier_k=opt.outlier_k, **shape)
+
+
+LOSS_SCALES = {"soft_l1": 0.3, "linear": float("inf")}  # px; inf: least squares
+
+
+def _report_views(res: RefineResult, idx: list[int], dets: list[Detection], reports: list[ViewReport]) -> None:
+    """Mark the refined views used, with their RMS, edge offset and the observations left out."""
+    for j, k in enumerate(idx):
+        rep, v = reports[k], res.views[j]
+        rep.used, rep.reason = True, ""
+        rep.rms, rep.edge_offset = float(res.view_rms[j]), float(res.offsets[j])
+        rep.rejected_edges, rep.rejected_corners = v.rejected_edges, v.rejected_corners
+        c = dets[k].corners
+        rep.unmeasured_corners = int(np.sum(~np.all(np.isfinite(c), 1))) if c is not None else 0
+
+
+def _projection(res: RefineResult, w: int, h: int, distance: float | None = None) -> ProjectionUncertainty | None:
     """The projection uncertainty of a refinement (None if its covariance is unknown)."""
     if res.covariance is None or res.x is None:
         return None
-    return res.projection_uncertainty(w, h)
+    out = res.projection_uncertainty(w, h, distance)
+    out.default_distance = distance is None
+    return out
 
 
 def _checked_options(options: CalibrationOptions, target: Target) -> CalibrationOptions:
@@ -292,9 +369,15 @@ def _checked_options(options: CalibrationOptions, target: Target) -> Calibration
     if opt.target_shape and not (target.grids or target.checkerboards):
         raise CalibrationError(f"the shape of target {target.name!r} cannot be estimated: it needs features spread "
                                "over the sheet (a ring or disc grid, or a checkerboard)")
-    if opt.target_shape and (opt.method == "zhang" or not opt.refine):
-        raise CalibrationError("the target shape is estimated by the refinement of the circle methods; "
-                               "drop --target-shape or use the target's default method with refinement")
+    if opt.target_shape and not opt.refine:
+        raise CalibrationError("the target shape is estimated by the refinement; drop --target-shape or --no-refine")
+    if opt.loss not in LOSS_SCALES:
+        raise CalibrationError(f"unknown loss {opt.loss!r}; choose one of {', '.join(LOSS_SCALES)}")
+    if not opt.outlier_k >= 0:
+        raise CalibrationError(f"the outlier threshold must be 0 (off) or positive, not {opt.outlier_k}")
+    d = opt.projection_distance
+    if d is not None and not d > 0:
+        raise CalibrationError(f"the projection uncertainty's distance must be positive (or inf), not {d}")
     return opt
 
 
@@ -333,6 +416,24 @@ class ClosedFormStart:
     init_dets: list[Detection]
     division: float
     warnings: list[str]
+    D: np.ndarray | None = None  # the start's distortion when it has one (OpenCV's checkerboard calibration)
+
+
+def zhang_start(dets: list[Detection], usable: list[int], target: Target, opt: CalibrationOptions,
+                reports: list[ViewReport]) -> ClosedFormStart:
+    """K, D and a pose per view from OpenCV's calibration of the checkerboard corners (Zhang's
+    closed form and OpenCV's own refinement): the start of the checkerboard path."""
+    try:
+        z = calibrate_zhang([dets[k] for k in usable], target, opt.distortion, target.local_origin)
+    except DegenerateViewsError as exc:
+        raise CalibrationError(str(exc)) from None
+    used = [usable[k] for k in z.used]
+    for k in usable:
+        if k not in used:
+            reports[k].used, reports[k].reason = False, "zhang: fewer than 6 measured corners"
+    Ki = np.linalg.inv(z.K)
+    sol = IacSolution(z.K, Ki.T @ Ki, float("nan"))
+    return ClosedFormStart(sol, used, dict(zip(used, z.poses, strict=True)), dets, 0.0, [], z.D)
 
 
 def closed_form_start(dets: list[Detection], usable: list[int], target: Target, opt: CalibrationOptions,
@@ -354,7 +455,7 @@ def closed_form_start(dets: list[Detection], usable: list[int], target: Target, 
     grid_poses: dict[int, Any] = {}
     try:
         if opt.method == "grid":
-            sol, poses = grid_homography_init(good, target, target.circles[0].center, opt.zero_skew)
+            sol, poses = grid_homography_init(good, target, target.local_origin, opt.zero_skew)
             used_local = [k for k, p in enumerate(poses) if p is not None]
             failed = {k: "fewer than 6 grid elements" for k, p in enumerate(poses) if p is None}
             grid_poses = {usable[k]: p for k, p in enumerate(poses) if p is not None}
@@ -401,8 +502,11 @@ def observations(det: Detection, target: Target, origin: tuple[float, float], op
 
 def _start_distortion(dets: list[Detection], start: ClosedFormStart, opt: CalibrationOptions, n: int, w: int,
                       h: int) -> np.ndarray:
-    """Zero, or k1 (k2) of the plumb-line division model when grids were straightened."""
+    """The start's own D, zero, or k1 (k2) of the plumb-line division model when grids were straightened."""
     D0 = np.zeros(n)
+    if start.D is not None:
+        D0[: min(n, len(start.D))] = start.D[:n]
+        return D0
     if start.division and "k1" in DISTORTION_MODELS[opt.distortion]:
         r_max = max(float(np.max(np.hypot(*(e.points - [w / 2, h / 2]).T))) for k in start.used for e in dets[k].edges)
         f = float(np.sqrt(start.sol.K[0, 0] * start.sol.K[1, 1]))
@@ -410,35 +514,34 @@ def _start_distortion(dets: list[Detection], start: ClosedFormStart, opt: Calibr
     return D0
 
 
-def _drop_outlier_views(res: RefineResult, views: list[ViewData], idx: list[int], reports: list[ViewReport],
-                        opt: CalibrationOptions, dof: int) -> tuple[RefineResult, list[ViewData], list[int]]:
+def _drop_outlier_views(res: RefineResult, idx: list[int], reports: list[ViewReport], opt: CalibrationOptions,
+                        dof: int) -> tuple[RefineResult, list[int]]:
     """Drop views whose RMS exceeds ``outlier_factor`` times the median (moved during exposure,
     wrong detection) and refit once."""
     med = float(np.median(res.view_rms))
     bad = [i for i, r in enumerate(res.view_rms) if r > opt.outlier_factor * max(med, 0.02)]
     if not bad or len(idx) - len(bad) < opt.min_views:
-        return res, views, idx
+        return res, idx
     for i in bad:
+        what = "edge RMS" if len(res.views[i].points) else "corner RMS"
         reports[idx[i]].used = False
-        reports[idx[i]].reason = (f"outlier: edge RMS {res.view_rms[i]:.3f} px is "
+        reports[idx[i]].reason = (f"outlier: {what} {res.view_rms[i]:.3f} px is "
                                   f"{res.view_rms[i] / max(med, 1e-9):.1f}x the median {med:.3f} px")
     keep = [i for i in range(len(idx)) if i not in bad]
-    res = refine([views[i] for i in keep], res.K, res.D, [res.poses[i] for i in keep], dof, opt.distortion,
-                 opt.zero_skew, opt.edge_offsets)
-    return res, [views[i] for i in keep], [idx[i] for i in keep]
+    res = _refine([res.views[i] for i in keep], res.K, res.D, [res.poses[i] for i in keep], dof, opt)
+    return res, [idx[i] for i in keep]
 
 
-def _add_views_without_start(res: RefineResult, views: list[ViewData], idx: list[int], dets: list[Detection],
-                             usable: list[int], target: Target, opt: CalibrationOptions, reports: list[ViewReport],
-                             origin: tuple[float, float], dof: int
-                             ) -> tuple[RefineResult, list[ViewData], list[int]]:
+def _add_views_without_start(res: RefineResult, idx: list[int], dets: list[Detection], usable: list[int],
+                             target: Target, opt: CalibrationOptions, reports: list[ViewReport],
+                             origin: tuple[float, float], dof: int) -> tuple[RefineResult, list[int]]:
     """Views the closed form could not use (a fisheye's rim, a view whose conics the start could
     not solve) or that were dropped as outliers (possibly a bad start) are posed with the refined
     camera (:func:`pose_with_camera`) and the refinement is repeated with them; a view that still
     fits badly is dropped as an outlier again."""
     missing = [k for k in usable if k not in idx]  # an outlier may only have had a bad start: one more try
     if not missing:
-        return res, views, idx
+        return res, idx
     cam = Camera(res.K, res.D, dets[0].width, dets[0].height, res.model)
     new_views, new_poses, new_idx = [], [], []
     for k in missing:
@@ -451,18 +554,18 @@ def _add_views_without_start(res: RefineResult, views: list[ViewData], idx: list
         new_poses.append(pose_to_params(pose, dof))
         new_idx.append(k)
     if not new_idx:
-        return res, views, idx
-    views, idx = views + new_views, idx + new_idx
-    res = refine(views, res.K, res.D, [*res.poses, *new_poses], dof, opt.distortion, opt.zero_skew, opt.edge_offsets)
-    return _drop_outlier_views(res, views, idx, reports, opt, dof)
+        return res, idx
+    idx = idx + new_idx
+    res = _refine(res.views + new_views, res.K, res.D, [*res.poses, *new_poses], dof, opt)
+    return _drop_outlier_views(res, idx, reports, opt, dof)
 
 
-def _estimate_target_shape(res: RefineResult, views: list[ViewData], target: Target, opt: CalibrationOptions,
+def _estimate_target_shape(res: RefineResult, target: Target, opt: CalibrationOptions,
                            origin: tuple[float, float], dof: int) -> tuple[RefineResult, dict[str, float]]:
     """Refit with the sheet's shape free; the effect on the intrinsics against the flat fit."""
     flat = res
-    res = refine(views, flat.K, flat.D, flat.poses, dof, opt.distortion, opt.zero_skew, opt.edge_offsets,
-                 shape=opt.target_shape, shape_frame=target_shape_frame(target, origin))
+    res = _refine(flat.views, flat.K, flat.D, flat.poses, dof, opt, shape=opt.target_shape,
+                  shape_frame=target_shape_frame(target, origin))
     effect = {"fx": res.K[0, 0] - flat.K[0, 0], "fy": res.K[1, 1] - flat.K[1, 1],
               "cx": res.K[0, 2] - flat.K[0, 2], "cy": res.K[1, 2] - flat.K[1, 2], "rms_flat": flat.rms}
     if "pitch_ratio" in res.shape_std:
@@ -516,6 +619,8 @@ def _refuse_beyond_pinhole_field(usable: list[Detection], target: Target, lens: 
     with the BLAS kernel, as was whether it drops the views at the rim as outliers). The field
     every usable view covers is estimated independently of the fit, with the generic fisheye lens
     r = f theta of :func:`equidistant_focal`; a field wider than PINHOLE_MAX_FIELD_DEG is refused."""
+    if not any(d.edges for d in usable):
+        return  # corners only: the fold check (_check_model_fits) covers them
     pts = np.concatenate([e.points for d in usable for e in d.edges])
     r = np.hypot(pts[:, 0] - w / 2, pts[:, 1] - h / 2)
     r_far = float(np.percentile(r, 99.9))
@@ -551,12 +656,12 @@ def _refuse_if_fisheye_fits(dets: list[Detection], target: Target, opt: Calibrat
 FOLD_REFUSE_FRACTION = 0.0005
 
 
-def _check_model_fits(res: RefineResult, views: list[ViewData], lens: LensModel, w: int, h: int) -> float:
+def _check_model_fits(res: RefineResult, lens: LensModel, w: int, h: int) -> float:
     """A pinhole polynomial fitted to a lens wider than it can describe folds over: some observed
     edge points then have no ray (or not the one they came from). Refuse such a result and name
     the model to use, rather than publish a folded-over camera."""
     cam = Camera(res.K, res.D, w, h, lens.name)
-    ok, _ = consistent_rays(cam, np.concatenate([v.points for v in views]), 0.05)
+    ok, _ = consistent_rays(cam, np.concatenate([np.r_[v.points, v.corners] for v in res.views]), 0.05)
     bad = float(np.mean(~ok))
     if bad > FOLD_REFUSE_FRACTION:
         field = float(np.degrees(lens.max_angle(res.D)))
@@ -564,8 +669,9 @@ def _check_model_fits(res: RefineResult, views: list[ViewData], lens: LensModel,
                                                               if lens.name == "plumb_bob" else "")
                   if not lens.wide else "check that the views show this target")
         raise CalibrationError(f"the fitted {lens.name} model folds over inside the observed field ({100 * bad:.1f} % "
-                               f"of the edge points have no consistent ray; the model is monotonic only up to "
-                               f"{field:.0f} degrees): this lens is wider than {lens.name} can describe; {advice}")
+                               "of the edge points and corners have no consistent ray; the model is monotonic "
+                               f"only up to {field:.0f} degrees): this lens is wider than {lens.name} can describe; "
+                               f"{advice}")
     return bad
 
 
@@ -582,46 +688,37 @@ def _check_result(res: RefineResult, w: int, h: int, warnings: list[str]) -> Non
 
 def _zhang(dets: list[Detection], target: Target, opt: CalibrationOptions, reports: list[ViewReport], w: int, h: int
            ) -> CalibrationResult:
+    """OpenCV's answer as it stands (``--method zhang --no-refine``: the baseline), with its
+    i.i.d. standard deviations and its corner residuals for the report."""
     try:
-        K, D, rms, used, std = calibrate_zhang(dets, target, opt.distortion, opt.zero_skew)
+        z = calibrate_zhang(dets, target, opt.distortion)
     except DegenerateViewsError as exc:
         raise CalibrationError(str(exc)) from None
     for k, rep in enumerate(reports):
-        rep.used = k in used
+        rep.used = k in z.used
         if dets[k].ok and not rep.used:
             rep.reason = "checkerboard not found"
     names = [n for n in intrinsic_names(DISTORTION_CHOICES[opt.distortion][0]) if n != "skew"]
-    corners, residuals = _zhang_residuals(dets, sorted(used), target, K, D)
-    res = CalibrationResult(K, D, w, h, "zhang", rms, {n: float(s) for n, s in zip(names, std, strict=False)
-                                                        if np.isfinite(s)},
-                            float("nan"), reports, [], None, True, opt.distortion,
-                            edge_points=[np.zeros((0, 2)) for _ in corners],
+    assert target.checkerboard is not None
+    grid = np.c_[target.checkerboard.corner_points(), np.zeros(len(target.checkerboard.corner_points()))]
+    cam = Camera(z.K, z.D, w, h, DISTORTION_CHOICES[opt.distortion][0].name)
+    corners, residuals = [], []
+    for k, pose in zip(z.used, z.poses, strict=True):
+        c = np.asarray(dets[k].corners, float)
+        ok = np.all(np.isfinite(c), 1)
+        corners.append(c[ok])
+        residuals.append(c[ok] - cam.project(grid[ok] @ pose.R.T + pose.t))
+    std = {n: float(s) for n, s in zip(names, z.std, strict=False) if np.isfinite(s)}
+    res = CalibrationResult(K=z.K, D=z.D, width=w, height=h, method="zhang", rms=z.rms, std=std,
+                            degeneracy_ratio=float("nan"), views=reports, refined=True,
+                            distortion_model=opt.distortion, edge_points=[np.zeros((0, 2)) for _ in corners],
                             edge_residuals=[np.zeros(0) for _ in corners],
                             edge_circles=[np.zeros(0, int) for _ in corners], corner_points=corners,
-                            corner_residuals=residuals)
+                            corner_residuals=residuals,
+                            std_model=("OpenCV calibrateCamera's standard deviations: independent corner noise of "
+                                       "one variance (the RMS), no correlation, no outlier rejection"
+                                       if std else "none: OpenCV's fisheye calibration gives no covariance"))
     return res.with_model_bias_warning()
-
-
-def _zhang_residuals(dets: list[Detection], used: list[int], target: Target, K: np.ndarray, D: np.ndarray
-                     ) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    """Corners of the used views and their residuals (observed - predicted) after posing each
-    view with OpenCV's solvePnP at the calibrated K, D (the report's residual statistics)."""
-    import cv2
-
-    assert target.checkerboard is not None
-    obj = np.c_[target.checkerboard.corner_points(), np.zeros(len(target.checkerboard.corner_points()))]
-    corners, residuals = [], []
-    for k in used:
-        c = np.asarray(dets[k].corners, float)
-        if len(c) != len(obj):
-            continue
-        ok, rvec, tvec = cv2.solvePnP(obj, c, K, D)
-        if not ok:
-            continue
-        q = cv2.projectPoints(obj, rvec, tvec, K, D)[0].reshape(-1, 2)
-        corners.append(c)
-        residuals.append(c - q)
-    return corners, residuals
 
 
 def _rejection_summary(reports: list[ViewReport]) -> str:

@@ -73,6 +73,16 @@ class ViewData:
     circle_ids: np.ndarray  # (N,) index into Target.circles
     corners: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))  # (M, 2) pixels
     corner_obj: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))  # (M, 2) local frame
+    # observations the refinement rejected as outliers so far (not in the arrays above)
+    rejected_edges: int = 0
+    rejected_corners: int = 0
+
+    def without(self, edge_rows: np.ndarray, corner_rows: np.ndarray) -> ViewData:
+        """A copy without the given edge points and corners (bool masks), counting them as rejected."""
+        keep_e, keep_c = ~np.asarray(edge_rows, bool), ~np.asarray(corner_rows, bool)
+        return ViewData(self.points[keep_e], self.centers[keep_e], self.radii[keep_e], self.signs[keep_e],
+                        self.circle_ids[keep_e], self.corners[keep_c], self.corner_obj[keep_c],
+                        self.rejected_edges + int(np.sum(~keep_e)), self.rejected_corners + int(np.sum(~keep_c)))
 
 
 @dataclass
@@ -103,6 +113,9 @@ class RefineResult:
     covariance: np.ndarray | None = None
     kappa: tuple[float, float] = (1.0, 1.0)  # correlation factors of the edge and the corner rows
     corner_residuals: list[np.ndarray] = field(default_factory=list)  # per view (M, 2), observed - predicted
+    # the observations the solution rests on (outliers removed; their counts in each ViewData)
+    views: list[ViewData] = field(default_factory=list)
+    robust: bool = True  # soft-L1 loss (False: least squares)
 
     def camera_of(self, x: np.ndarray) -> Camera:
         """The camera of a parameter vector of :attr:`problem`."""
@@ -116,13 +129,21 @@ class RefineResult:
         R, _, t = self.problem.rotations(self.problem.unpack(x, self.intr0)[2])
         return R, t
 
+    def target_distance(self) -> float:
+        """Median distance (m) from the camera to the observed target's centre (the middle of the
+        observed features' extent on the sheet) over the views."""
+        assert self.x is not None and self.problem is not None
+        R, t = self.view_poses_of(self.x)
+        xm, ym = self.problem.frame[:2]
+        return float(np.median(np.linalg.norm(R[:, :, 0] * xm + R[:, :, 1] * ym + t, axis=1)))
+
     def projection_uncertainty(self, width: int, height: int, distance: float | None = None
                                ) -> ProjectionUncertainty:
-        """:func:`uncertainty.projection_uncertainty` at ``distance`` (default: the views' median
-        target distance)."""
+        """:func:`uncertainty.projection_uncertainty` at ``distance`` metres (default: the median
+        distance to the observed target's centre, :meth:`target_distance`; inf: at infinity)."""
         assert self.x is not None and self.covariance is not None
         if distance is None:
-            distance = float(np.median(np.linalg.norm(self.view_poses_of(self.x)[1], axis=1)))
+            distance = self.target_distance()
         return projection_uncertainty(self.camera_of, self.view_poses_of, self.x, self.covariance, width, height,
                                       distance)
 
@@ -254,13 +275,26 @@ class Problem:
 
     # -- loss (every row robust here; subclasses may add rows with a quadratic loss) --------
     def robust_weights(self, f: np.ndarray, loss_scale: float) -> np.ndarray:
-        """IRLS weights of the soft-L1 loss, 1 / sqrt(1 + (r / f)^2)."""
+        """IRLS weights w = psi(r) / r of the soft-L1 loss, 1 / sqrt(1 + (r / s)^2); 1 for least
+        squares (``loss_scale`` infinite)."""
+        if not np.isfinite(loss_scale):
+            return np.ones(len(f))
         return 1.0 / np.sqrt(1 + (f / loss_scale) ** 2)
 
     def robust_cost(self, f: np.ndarray, loss_scale: float) -> float:
-        """Soft-L1 cost f^2 sum (sqrt(1 + (r / f)^2) - 1)."""
+        """Soft-L1 cost s^2 sum (sqrt(1 + (r / s)^2) - 1); sum r^2 / 2 for least squares."""
+        if not np.isfinite(loss_scale):
+            return 0.5 * float(np.sum(f * f))
         z = (f / loss_scale) ** 2
         return float(loss_scale**2 * np.sum(np.sqrt(1 + z) - 1))
+
+    def loss_derivatives(self, f: np.ndarray, loss_scale: float) -> tuple[np.ndarray, np.ndarray]:
+        """(psi, psi') per row: the first and second derivatives of the loss at the residuals. For
+        soft-L1, psi = w r and psi' = w^3 with the IRLS weight w (least squares: r and 1). An
+        M-estimator's covariance is A^-1 B A^-1 with A = J^T diag(psi') J and B = cov(J^T psi)
+        (Huber, "Robust Statistics", 1981, sec. 7.6), not the IRLS weights in both."""
+        w = self.robust_weights(f, loss_scale)
+        return w * f, w**3
 
     def _per_view(self, A: np.ndarray, M: np.ndarray) -> np.ndarray:
         """Rows of A (n, ..., 3) times their view's matrix M[v] (3, k): one product per view (the
@@ -509,6 +543,11 @@ class ChainProblem(Problem):
     def robust_cost(self, f: np.ndarray, loss_scale: float) -> float:
         return super().robust_cost(f[: self.n_robust], loss_scale) + 0.5 * float(np.sum(f[self.n_robust:] ** 2))
 
+    def loss_derivatives(self, f: np.ndarray, loss_scale: float) -> tuple[np.ndarray, np.ndarray]:
+        psi, dpsi = f.copy(), np.ones(len(f))
+        psi[: self.n_robust], dpsi[: self.n_robust] = super().loss_derivatives(f[: self.n_robust], loss_scale)
+        return psi, dpsi
+
     def chain_rows(self) -> tuple[np.ndarray, np.ndarray]:
         """Row indices of the chain's rotation rows and translation rows."""
         base = self.n_robust + 6 * np.arange(self.nv)[:, None]
@@ -584,11 +623,53 @@ def levenberg_marquardt(prob: Problem, x0: np.ndarray, intr0: np.ndarray, loss_s
     return LMResult(x, f, A, w, cost, nfev, it, success, message)
 
 
+# outlier rejection (mrcal's, per view and kind): a residual beyond OUTLIER_K robust standard deviations
+# of its group (1.4826 x the median absolute residual) is dropped and the fit repeated; never below
+# MIN_OUTLIER_PX (noise-free data), nor in groups of fewer than MIN_OUTLIER_GROUP rows. A group that
+# would lose more than MAX_OUTLIER_FRACTION of its observations is not trimmed: the view itself is bad
+# (a moved or misdetected view), which the pipeline's view test catches
+OUTLIER_K = 5.0
+MIN_OUTLIER_PX = 0.05
+MIN_OUTLIER_GROUP = 8
+MAX_OUTLIER_FRACTION = 0.25
+MAX_REJECTION_ROUNDS = 4
+
+
+def _outliers(r: np.ndarray, scale_of: np.ndarray, k: float, already: int) -> np.ndarray:
+    """Rows of one group whose magnitude ``r`` exceeds k robust standard deviations (from the
+    residual components ``scale_of``), unless that would take more than MAX_OUTLIER_FRACTION of
+    the group's observations (``already`` rejected before)."""
+    if len(r) < MIN_OUTLIER_GROUP:
+        return np.zeros(len(r), bool)
+    bad = r > max(k * 1.4826 * float(np.median(np.abs(scale_of))), MIN_OUTLIER_PX)
+    if already + bad.sum() > MAX_OUTLIER_FRACTION * (len(r) + already):
+        return np.zeros(len(r), bool)
+    return bad
+
+
+def outlier_masks(prob: Problem, f: np.ndarray, k: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per view, (edge points, corners) whose residual exceeds ``k`` robust standard deviations of
+    that view's residuals of their kind (a corner by the length of its 2-vector residual)."""
+    out = []
+    corner_res = f[prob.n_edge:prob.n_edge + 2 * prob.n_corner].reshape(-1, 2)
+    for v, sl in enumerate(prob.edge_slices):
+        r = f[sl]
+        c = corner_res[prob.view_of_corner == v]
+        view = prob.views[v]
+        out.append((_outliers(np.abs(r), r, k, view.rejected_edges),
+                    _outliers(np.hypot(c[:, 0], c[:, 1]), c, k, view.rejected_corners)))
+    return out
+
+
 def refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[np.ndarray], dof: int,
            distortion: str = "plumb_bob", zero_skew: bool = True, use_offsets: bool = True,
            loss_scale: float = 0.3, max_iter: int = 60, shape: tuple[str, ...] = (),
-           shape_frame: tuple[float, float, float, float] | None = None) -> RefineResult:
-    """Least squares over K, D, poses, offsets and the named shape parameters (module docstring).
+           shape_frame: tuple[float, float, float, float] | None = None, outlier_k: float = OUTLIER_K
+           ) -> RefineResult:
+    """Robust least squares over K, D, poses, offsets and the named shape parameters (module
+    docstring); observations beyond ``outlier_k`` robust standard deviations of their view are
+    rejected and the fit repeated until none is left (0: keep every observation). A view may have
+    edge points, corners or both. ``loss_scale`` is the soft-L1 scale in px (inf: least squares).
 
     ``shape_frame`` is (x mid, y mid, x half-width, y half-width) of the warp in the local frame
     (default: the extent of the observed circles); the shape starts flat and true to scale, and
@@ -611,31 +692,47 @@ def refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[n
             intr0[names.index(name)] = 0.0
     x0 = prob.pack(intr0, poses0, np.zeros(len(views)))
     sol = levenberg_marquardt(prob, x0, intr0, loss_scale, max_iter=max_iter)
+    for _ in range(MAX_REJECTION_ROUNDS if outlier_k > 0 else 0):
+        masks = outlier_masks(prob, sol.fun, outlier_k)
+        if not any(e.any() or c.any() for e, c in masks):
+            break
+        views = [v.without(e, c) for v, (e, c) in zip(views, masks, strict=True)]
+        prob = Problem(views, dof, free, use_offsets, loss_scale, tuple(shape), prob.frame, lens)
+        sol = levenberg_marquardt(prob, sol.x, intr0, loss_scale, max_iter=max_iter)
+    return _refine_result(prob, sol, intr0, loss_scale)
+
+
+def _refine_result(prob: Problem, sol: LMResult, intr0: np.ndarray, loss_scale: float) -> RefineResult:
+    """The solution of a refinement with its residuals per view and the parameters' covariance (the
+    M-estimator's sandwich with per-view noise and correlated residuals, :mod:`.uncertainty`)."""
+    views = prob.views
     intr_, shape_v, poses, offsets = prob.unpack(sol.x, intr0)
     K, D = _camera(intr_)
-    R, dR, t = prob.rotations(poses)
-    er = prob._edges(K, D, R, dR, t, shape_v, offsets, jac=False)[0]
-    per_view = [er[prob.view_of_pt == i] for i in range(len(views))]
-    view_rms = np.array([np.sqrt(np.mean(r * r)) if len(r) else 0.0 for r in per_view])
+    er = sol.fun[: prob.n_edge]
+    per_view = [er[sl] for sl in prob.edge_slices]
     corner_rms = np.zeros(len(views))
     corner_res = [np.zeros((0, 2)) for _ in views]
     if prob.n_corner:
-        cr = -prob._corners(K, D, R, dR, t, shape_v, jac=False)[0].reshape(-1, 2)  # observed - predicted
+        cr = -sol.fun[prob.n_edge:prob.n_edge + 2 * prob.n_corner].reshape(-1, 2)  # observed - predicted
         for i in range(len(views)):
             sel = prob.view_of_corner == i
             if sel.any():
                 corner_res[i] = cr[sel]
                 corner_rms[i] = float(np.sqrt(np.mean(np.sum(cr[sel] ** 2, 1))))
-    # standard deviations from the sandwich covariance with correlated, per-view noise (uncertainty.py)
+    # a view's RMS: of its edge distances, or of its corners' reprojection errors when it has no edges
+    view_rms = np.array([np.sqrt(np.mean(r * r)) if len(r) else corner_rms[i] for i, r in enumerate(per_view)])
+    rms = float(np.sqrt(np.mean(er * er))) if len(er) else float(np.sqrt(np.mean(corner_rms**2)))
     std: dict[str, float] = {}
     shape_std: dict[str, float] = {}
     corr = 0.0
     cov: np.ndarray | None = None
     kappa = correlation_factors(prob, views, sol.fun)
+    names = prob.names
     try:
         _, Jg, Jv = prob.evaluate(sol.x, intr0)
-        var = row_variances(prob, views, sol.fun, sol.weights, len(sol.x))
-        cov = sandwich_covariance(prob, sol.normal_matrix, sol.fun, Jg, Jv, sol.weights, var)
+        psi, dpsi = prob.loss_derivatives(sol.fun, loss_scale)
+        var = row_variances(prob, views, sol.fun, psi, len(sol.x))
+        cov = sandwich_covariance(prob, sol.fun, Jg, Jv, dpsi, var)
         for k, idx in enumerate(prob.free):
             std[names[idx]] = float(np.sqrt(max(cov[k, k], 0.0)))
         for k, idx in enumerate(prob.shape_idx):
@@ -647,7 +744,8 @@ def refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[n
                 corr = float(cov[j] @ g / np.sqrt(max(cov[j, j] * (g @ cov @ g), 1e-300)))
     except np.linalg.LinAlgError:
         pass
-    return RefineResult(K, D, [p.copy() for p in poses], offsets, std, view_rms, corner_rms,
-                        float(np.sqrt(np.mean(er * er))), per_view, float(sol.cost), int(sol.nfev),
-                        bool(sol.success), str(sol.message), dict(zip(SHAPE_NAMES, map(float, shape_v), strict=True)),
-                        shape_std, lens.name, float(corr), sol.x, prob, intr0, cov, kappa, corner_res)
+    return RefineResult(K, D, [p.copy() for p in poses], offsets, std, view_rms, corner_rms, rms, per_view,
+                        float(sol.cost), int(sol.nfev), bool(sol.success), str(sol.message),
+                        dict(zip(SHAPE_NAMES, map(float, shape_v), strict=True)), shape_std, prob.lens.name,
+                        float(corr), sol.x, prob, intr0, cov, kappa, corner_res, views=views,
+                        robust=bool(np.isfinite(loss_scale)))

@@ -6,12 +6,13 @@
   residual sequences along each contour (Geyer's initial positive sequence; Geyer 1992, "Practical
   Markov chain Monte Carlo", Stat. Sci. 7) is the factor by which the variance of a slowly varying
   weighted sum of them exceeds the white-noise value.
-- **Parameter covariance.** The fit minimises an unweighted (robust) sum of squares, while the
-  noise differs between views (contrast, blur, JPEG) and between edges and corners. The covariance
-  of such an estimate is the sandwich A^-1 B A^-1 with A = J^T W J and B = sum_g c_g J_g^T W^2 J_g
-  over groups g (the edge rows and the corner rows of each view), c_g = kappa_kind s_g^2 the
-  group's residual variance times its correlation factor (White 1980, Econometrica 48;
-  heteroscedastic least squares).
+- **Parameter covariance.** The fit minimises an unweighted robust loss rho (soft-L1) of the
+  residuals, while the noise differs between views (contrast, blur, JPEG) and between edges and
+  corners. The covariance of such an M-estimate is the sandwich A^-1 B A^-1 with
+  A = J^T diag(psi'(r)) J and B = sum_g c_g J_g^T J_g over groups g (the edge rows and the corner
+  rows of each view), c_g = kappa_kind mean_g(psi(r)^2) the group's variance of the loss's
+  derivative psi = rho' times its correlation factor (Huber 1981, "Robust Statistics", sec. 7.6;
+  White 1980, Econometrica 48, for the heteroscedastic groups). For least squares psi = r, psi' = 1.
 - **Projection uncertainty** (mrcal, "Projection uncertainty"): the pixel of a point at a given
   range is uncertain through the intrinsics *and* through the camera's placement relative to the
   views, which the calibration estimates jointly. As mrcal does, the point is carried into every
@@ -122,35 +123,36 @@ def correlation_factor(prob: Problem, views: list[ViewData], f: np.ndarray) -> f
     return float((n_e * kap_e + n_c * kap_c) / max(n_e + n_c, 1))
 
 
-def row_variances(prob: Problem, views: list[ViewData], f: np.ndarray, w: np.ndarray, n_params: int
+def row_variances(prob: Problem, views: list[ViewData], f: np.ndarray, psi: np.ndarray, n_params: int
                   ) -> np.ndarray:
-    """Per residual row of the views' observations: kappa_kind s_g^2, s_g^2 the weighted mean
-    square residual of its group (one view's edge rows, or its corner rows) scaled by N / (N - P)
-    for the parameters the fit absorbed."""
+    """Per residual row of the views' observations: kappa_kind s_g^2, with s_g^2 the mean of psi(r)^2
+    over its group (one view's edge rows, or its corner rows; psi the loss's derivative, r for least
+    squares) scaled by N / (N - P) for the parameters the fit absorbed: the meat of an
+    M-estimator's sandwich (:func:`sandwich_covariance`)."""
     n_e, n_c = prob.n_edge, 2 * prob.n_corner
     kap_e, kap_c = correlation_factors(prob, views, f)
     n = n_e + n_c
     dof_scale = n / max(n - n_params, 1)
     var = np.zeros(n)
-    groups = [(sl, kap_e) for sl in prob.edge_slices]
+    groups = [(np.arange(sl.start, sl.stop), kap_e) for sl in prob.edge_slices]
     if n_c:
-        corner_rows = n_e + np.flatnonzero(np.repeat(prob.view_of_corner, 2) >= 0)
         vc = np.repeat(prob.view_of_corner, 2)
-        groups += [(corner_rows[vc == v], kap_c) for v in range(prob.nv)]
+        groups += [(n_e + np.flatnonzero(vc == v), kap_c) for v in range(prob.nv)]
     for rows, kap in groups:
-        r, ww = f[rows], w[rows]
-        if np.size(r):
-            var[rows] = kap * dof_scale * float(np.sum(ww * r * r) / np.size(r))
+        if len(rows):
+            var[rows] = kap * dof_scale * float(np.mean(psi[rows] ** 2))
     return var
 
 
-def sandwich_covariance(prob: Problem, A: np.ndarray, f: np.ndarray, Jg: np.ndarray, Jv: np.ndarray,
-                        w: np.ndarray, var: np.ndarray) -> np.ndarray:
-    """A^-1 (J^T W diag(var) W J) A^-1 over all parameters (module docstring); rows beyond
-    ``len(var)`` (e.g. a robot chain's, already in units of their sigma) count with variance 1."""
+def sandwich_covariance(prob: Problem, f: np.ndarray, Jg: np.ndarray, Jv: np.ndarray, dpsi: np.ndarray,
+                        var: np.ndarray) -> np.ndarray:
+    """A^-1 B A^-1 over all parameters: A = J^T diag(psi') J, B = J^T diag(var) J (module docstring;
+    ``var`` from :func:`row_variances`); rows beyond ``len(var)`` (e.g. a robot chain's, already in
+    units of their sigma) count with variance 1."""
     v = np.ones(len(f))
     v[:len(var)] = var
-    B, _ = prob.normal_equations(f, Jg, Jv, w * w * v)
+    A, _ = prob.normal_equations(f, Jg, Jv, dpsi)
+    B, _ = prob.normal_equations(f, Jg, Jv, v)
     Ainv = np.linalg.pinv(A)
     return Ainv @ B @ Ainv
 
@@ -173,8 +175,9 @@ class ProjectionUncertainty:
 
     pixels: np.ndarray  # (N, 2) grid over the image
     sigma: np.ndarray  # (N,) px; NaN where the model cannot unproject
-    distance: float  # m
+    distance: float  # m (inf: at infinity)
     grid_shape: tuple[int, int]  # (rows, cols) of the grid
+    default_distance: bool = False  # the distance is the default (median distance to the target's centre)
 
     def over(self, mask: np.ndarray | None) -> np.ndarray:
         """The finite sigmas of the grid points inside ``mask`` ((H, W) bool; None: all)."""
@@ -199,19 +202,24 @@ def projection_uncertainty(camera_of: Callable[[np.ndarray], Camera],
     """mrcal's projection uncertainty (module docstring) on a grid of pixels.
 
     ``camera_of(x)`` is the camera of a parameter vector, ``view_poses_of(x)`` the views' poses
-    (R (V, 3, 3) target -> camera, t (V, 3)); ``cov`` the parameters' covariance."""
+    (R (V, 3, 3) target -> camera, t (V, 3)); ``cov`` the parameters' covariance. An infinite
+    ``distance`` projects directions: the rays are carried through the views' rotations only."""
     step = step or max(width, height) / 40.0
     uv = grid_pixels(width, height, step)
     cam = camera_of(x)
     rays = cam.unproject(uv)
     ok = np.all(np.isfinite(rays), 1)
-    p_cam = distance * rays[ok]
+    finite = bool(np.isfinite(distance))
+    p_cam = distance * rays[ok] if finite else rays[ok]
     R, t = view_poses_of(x)
-    p_loc = np.einsum("vji,vnj->vni", R, p_cam[None, :, :] - t[:, None, :])  # R^T (p - t), per view
+    t0 = t if finite else np.zeros_like(t)
+    p_loc = np.einsum("vji,vnj->vni", R, p_cam[None, :, :] - t0[:, None, :])  # R^T (p - t), per view
 
     def q(xx: np.ndarray) -> np.ndarray:
         Rx, tx = view_poses_of(xx)
-        p = np.mean(p_loc @ np.transpose(Rx, (0, 2, 1)), axis=0) + np.mean(tx, axis=0)  # mean_i R_i p_i + t_i
+        p = np.mean(p_loc @ np.transpose(Rx, (0, 2, 1)), axis=0)  # mean_i R_i p_i (+ t_i)
+        if finite:
+            p = p + np.mean(tx, axis=0)
         return camera_of(xx).project(p)
 
     active = np.flatnonzero(np.diag(cov) > 0)

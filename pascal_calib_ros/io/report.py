@@ -169,7 +169,9 @@ def report_numbers(d: ReportData) -> dict[str, Any]:
         "distortion_choice": res.distortion_model,
         "K": res.K.tolist(), "D": res.D.tolist(), "std": res.std,
         "rms_px": res.rms, "degeneracy_ratio": res.degeneracy_ratio, "warnings": res.warnings,
-        "views": [{"name": v.name, "used": v.used, "reason": v.reason, "rms_px": v.rms, "edge_offset_px": v.edge_offset}
+        "views": [{"name": v.name, "used": v.used, "reason": v.reason, "rms_px": v.rms, "edge_offset_px": v.edge_offset,
+                   "corners_rejected_by_detector": v.unmeasured_corners, "outliers_rejected": {
+                       "edge_points": v.rejected_edges, "corners": v.rejected_corners}}
                   for v in res.views],
         "coverage": {"observed_fraction": float(d.field.mean()),
                      "observed_field": "union over the used views of the convex hull of their feature points",
@@ -204,7 +206,7 @@ def report_numbers(d: ReportData) -> dict[str, Any]:
                                 "radius"},
         "uncertainty": {"projection": res.projection_summary(),
                         "projection_over": "observed field, worst-direction sigma (mrcal's projection uncertainty)",
-                        "std_model": "sandwich covariance, per-view noise, correlated edge residuals"},
+                        "std_model": res.std_model},
         "target_shape": {"estimated": {n: res.shape[n] for n in res.shape_std}, "std": res.shape_std,
                          "change_against_flat_sheet": res.shape_effect} if res.shape else None,
     }
@@ -407,7 +409,8 @@ def summary_lines(d: ReportData, width: int = 88) -> list[str]:
     vals = [res.K[0, 0], res.K[1, 1], res.K[0, 2], res.K[1, 2], *res.D]
     lines = [f"{res.width}x{res.height}, {res.model}; method {res.method}{' + refinement' if res.refined else ''}; "
              f"{res.n_used}/{len(res.views)} views used",
-             f"edge RMS {res.rms:.4f} px; degeneracy ratio {res.degeneracy_ratio:.3f}",
+             f"{'edge' if any(len(p) for p in res.edge_points) else 'corner'} RMS {res.rms:.4f} px; "
+             f"degeneracy ratio {res.degeneracy_ratio:.3f}",
              res.projection_line(),
              f"observed field: {100 * d.field.mean():.0f} % of the image", ""]
     lines += [f"{n:>3} = {v:12.5f}  +- {res.std.get(n, float('nan')):.5f}" for n, v in zip(names, vals, strict=True)]
@@ -419,6 +422,13 @@ def summary_lines(d: ReportData, width: int = 88) -> list[str]:
         lines += textwrap.wrap(f"model fits: no residual pattern beyond the noise (largest regional mean "
                                f"{b.max_regional_px:.3f} px; floors {REGIONAL_FLOOR_PX} px regional, "
                                f"{RADIAL_FLOOR_PX} px radial)", width)
+    lines.append("")
+    trimmed = [v for v in res.views if v.used and v.rejections()]
+    if trimmed:
+        lines.append(f"observations left out ({len(trimmed)} views):")
+        lines += [f"  {v.name}: {v.rejections()}"[:width] for v in trimmed[:8]]
+        lines.append("")
+    lines += textwrap.wrap(f"standard deviations: {res.std_model}", width)
     lines.append("")
     rejected = [v for v in res.views if not v.used]
     if rejected:

@@ -389,7 +389,8 @@ def _board_sessions(trials: int, seed: int, k1: float, views: int = 10) -> list[
     return out
 
 
-BOARD_METHODS = (("ring", False), ("pt1", False), ("pt2", False), ("huang", False), ("zhang", True),
+# (method, our refinement); zhang without ours is OpenCV's calibrateCamera (Zhang's method as OpenCV does it)
+BOARD_METHODS = (("ring", False), ("pt1", False), ("pt2", False), ("huang", False), ("zhang", False),
                  ("ring", True))
 
 

@@ -77,7 +77,8 @@ def accuracy(out: Path, views: int, seed: int) -> list[dict[str, Any]]:
         for label, dets, target, opt in (
             ("ring closed form", ring_dets, ring, CalibrationOptions(refine=False)),
             ("ring refined", ring_dets, ring, CalibrationOptions()),
-            ("OpenCV checkerboard", board_dets, board, CalibrationOptions(method="zhang")),
+            ("OpenCV checkerboard", board_dets, board, CalibrationOptions(method="zhang", refine=False)),
+            ("checkerboard refined (ours)", board_dets, board, CalibrationOptions(method="zhang")),
         ):
             try:
                 res = calibrate(dets, target, opt)

@@ -46,6 +46,7 @@ class TrustScenario:
     spec: SessionSpec
     distortion: str = "plumb_bob"
     gamma: float = 1.0  # detection linearises with this display gamma (``--gamma``); 1: as the default
+    loss: str = "soft_l1"  # the refinement's loss (``--loss``)
 
 
 def scenarios(views: int) -> tuple[TrustScenario, ...]:
@@ -66,6 +67,10 @@ def scenarios(views: int) -> tuple[TrustScenario, ...]:
         TrustScenario("ring grid, fisheye 190 deg (equidistant)", "ring_grid_a4", fisheye.spec, fisheye.distortion),
         TrustScenario("ring grid, fisheye 190 deg (equidistant), --gamma 2.2", "ring_grid_a4", fisheye.spec,
                       fisheye.distortion, gamma=2.2),
+        TrustScenario("checkerboard, 800x600, k1 -0.2", "checkerboard_a4", base),
+        TrustScenario("checkerboard, 800x600, k1 -0.2, --loss linear", "checkerboard_a4", base, loss="linear"),
+        TrustScenario("checkerboard, 640x480, k1 -0.2, JPEG 90", "checkerboard_a4",
+                      replace(base, width=640, height=480, jpeg=90)),
     )
 
 
@@ -83,7 +88,7 @@ def _one_draw(args: tuple[TrustScenario, int, str]) -> dict[str, Any]:
         img = render_view(target, cam, pose, sens, spec.sheet_shape(target)).image
         dets.append(detect_target(img, target, name=name, params=DetectionParams(gamma=sc.gamma)))
     try:
-        res = calibrate(dets, target, CalibrationOptions(distortion=sc.distortion))
+        res = calibrate(dets, target, CalibrationOptions(distortion=sc.distortion, loss=sc.loss))
     except CalibrationError as e:
         return {"error": str(e)}
     truth = {"fx": cam.K[0, 0], "fy": cam.K[1, 1], "cx": cam.K[0, 2], "cy": cam.K[1, 2]}
