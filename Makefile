@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 export AMENT_PREFIX_PATH := $(abspath $(VENV))
 
-.PHONY: demo test lint typecheck unit kernels bench study experiments clean venv
+.PHONY: demo test lint typecheck unit kernels bench study experiments clean venv mrcal-venv mrcal-judge
 
 venv: $(STAMP)
 
@@ -27,7 +27,16 @@ lint: $(STAMP)
 typecheck: $(STAMP)
 	$(VENV)/bin/mypy pascal_calib_ros
 
-unit: $(STAMP)
+# mrcal as a judge (tools/mrcal_judge.py) in .venv-mrcal: Python 3.12/3.13 only (mrcal's wheels)
+mrcal-venv:
+	tools/mrcal_venv
+
+# made for the tests when a Python 3.12/3.13 is there (about 15 s; a minute when pip downloads); without
+# one, or offline, the tests that need mrcal skip and say why
+mrcal-judge:
+	@tools/mrcal_venv || echo "make: no mrcal judge (see above): the tests that need it skip"
+
+unit: $(STAMP) mrcal-judge
 	tools/in_netns $(PY) -m pytest -q test
 
 # the numerical tests again under every OpenBLAS kernel this CPU runs (results must not hang on rounding)
@@ -47,4 +56,4 @@ study: $(STAMP)
 	$(VENV)/bin/pascal-calib study edge-bias --out out/study
 
 clean:
-	rm -rf $(VENV) build install log *.egg-info demo_out out
+	rm -rf $(VENV) .venv-mrcal build install log *.egg-info demo_out out
