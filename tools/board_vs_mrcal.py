@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from pathlib import Path
@@ -46,7 +47,7 @@ from pascal_calib_ros.targets import Target, resolve_target
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import mrcal_bridge
 
-INFINITY_M = 1e9  # our projection sigma "at infinity": the views' translations count 1e-9 of it
+INFINITY_M = math.inf  # projection sigma at infinity (directions: the views' rotations only)
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".pgm")
 SUBPIX = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 30, 0.001)
 
@@ -105,9 +106,12 @@ def sigma_summary(pixels: np.ndarray, sigma: np.ndarray, distance: float, mask: 
 
 
 def ours_rows(dets: list[Any], target: Target, distortion: str, detect_s: float) -> list[dict[str, Any]]:
-    """Our pipeline with the target's default method, and with refinement off."""
+    """Our pipeline with the target's default method, with the sheet's warp estimated too (as mrcal
+    does by default), and with refinement off."""
     rows = []
     for name, opt in (("ours", CalibrationOptions(distortion=distortion)),
+                      ("ours, --target-shape warp", CalibrationOptions(distortion=distortion,
+                                                                       target_shape=("warp_x", "warp_y"))),
                       ("ours, refine off", CalibrationOptions(distortion=distortion, refine=False))):
         t0 = time.perf_counter()
         try:
@@ -116,7 +120,10 @@ def ours_rows(dets: list[Any], target: Target, distortion: str, detect_s: float)
             rows.append({"method": name, "error": str(exc)})
             continue
         row = row_of(name, res.K, res.rms, res.n_used, time.perf_counter() - t0, detect_s=detect_s,
-                     D=np.ravel(res.D).tolist(), method_used=res.method, refined=res.refinement is not None)
+                     D=np.ravel(res.D).tolist(), method_used=res.method, refined=res.refinement is not None,
+                     outliers=sum(v.rejected_corners for v in res.views),
+                     outliers_per_view=[v.rejected_corners for v in res.views if v.used],
+                     kappa_corners=res.refinement.kappa[1] if res.refinement is not None else float("nan"))
         row["result"] = res  # for the sigma at mrcal's distance; dropped before printing
         rows.append(row)
     return rows
@@ -218,6 +225,10 @@ def _ratios(rows: list[dict[str, Any]]) -> None:
             continue
         r["ratio_to_mrcal"] = {f"{k}_{q}": r[k][q] / ref[k][q] for k in ("sigma_dist", "sigma_inf")
                                for q in ("median_px", "worst_px")}
+        # mrcal takes the corners' noise as independent; ours counts their correlation along the rows and
+        # columns (kappa): what remains of the ratio after sqrt(kappa) is the rest of the difference
+        if "kappa_corners" in r:
+            r["ratio_over_sqrt_kappa"] = {k: v / np.sqrt(r["kappa_corners"]) for k, v in r["ratio_to_mrcal"].items()}
 
 
 def _f(x: Any, fmt: str = "8.3f") -> str:
@@ -257,6 +268,13 @@ def table(out: dict[str, Any]) -> str:
             for r in out["rows"] if "fx" in r and r is not ref))
         lines.append(f"mrcal: noise {ref['noise_px']:.3f} px, outliers per view {ref['outliers_per_view']}, "
                      f"board warp {ref['calobject_warp']} m")
+    for r in out["rows"]:
+        if "ratio_over_sqrt_kappa" in r:
+            q = r["ratio_over_sqrt_kappa"]
+            lines.append(f"{r['method']}: outliers per view {r['outliers_per_view']}; corner kappa "
+                         f"{r['kappa_corners']:.2f}; sigma ratio / sqrt(kappa) at the distance "
+                         f"{q['sigma_dist_median_px']:.2f} (median) / {q['sigma_dist_worst_px']:.2f} (worst), at "
+                         f"infinity {q['sigma_inf_median_px']:.2f} / {q['sigma_inf_worst_px']:.2f}")
     for k in ("corners_vs_sb", "corners_vs_classic"):
         c = out[k]
         lines.append(f"our corners vs {k[11:]}: median {c['median_px']:.3f} px, max {c['max_px']:.2f} px, "

@@ -575,8 +575,8 @@ def _estimate_target_shape(res: RefineResult, target: Target, opt: CalibrationOp
 
 def target_shape_frame(target: Target, origin: tuple[float, float]) -> tuple[float, float, float, float]:
     """Frame of the warp (refine.shape_frame_of) over all circle centres and checkerboard corners
-    of the target, in the refinement's local frame (origin at the first circle centre)."""
-    pts = [np.array([c.center for c in target.circles])]
+    of the target, in the refinement's local frame (origin: ``Target.local_origin``)."""
+    pts = [np.array([c.center for c in target.circles]).reshape(-1, 2)]
     if target.checkerboard is not None:
         pts.append(target.checkerboard.corner_points())
     return shape_frame_of(np.concatenate(pts) - np.array(origin))
