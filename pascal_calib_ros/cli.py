@@ -116,7 +116,7 @@ def format_summary(res: CalibrationResult) -> str:
             f"{k} {res.shape_effect[k]:+.3f}" for k in ("fx", "fy", "cx", "cy"))
             + f"  (edge RMS {res.shape_effect['rms_flat']:.4f} -> {res.rms:.4f} px)")
     if len(res.circle_names) > 2 and res.edge_circles:
-        from .io.report import per_circle_rms
+        from .report.pages import per_circle_rms
 
         worst = list(per_circle_rms(res).items())[:3]
         lines.append("worst circles (edge RMS over all views): " + ", ".join(f"{k} {v:.3f} px" for k, v in worst))
@@ -128,7 +128,7 @@ def _write_report(res: CalibrationResult, dets: list[Detection], out_dir: str, p
                   hand_eye: Any = None) -> None:
     """report.pdf / .png / .json (io/report.py), the worst views drawn on their own images; with a
     hand-eye result its page and numbers too."""
-    from .io.report import write_report
+    from .report.pages import write_report
 
     by_name = {p.name: p for p in paths}
     t0 = time.perf_counter()
@@ -200,7 +200,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     if args.cross_validate:
         # two interleaved halves against their projection uncertainty (calibrate/cross_validation.py); a
         # disagreement or a refusal is a WARNING, not a failure: the calibration is written either way
-        from .calibrate.cross_validation import cross_validate
+        from .analysis.cross_validation import cross_validate
 
         try:
             cv = cross_validate(dets, target, opts)
@@ -216,8 +216,8 @@ def _handeye_bag_input(args: argparse.Namespace, target: Target, params: Detecti
                        ) -> tuple[str, str, list[Detection], list[Transform | None]] | None:
     """(base frame, tool frame, detections, robot poses) of the still frames of an arm session
     bag (:mod:`.io.arm_bag`), or None after printing why not."""
-    from .io.arm_bag import read_arm_bag
     from .io.bags import BagError
+    from .session.arm_bag import read_arm_bag
 
     try:
         bag = read_arm_bag(args.bag, args.image_topic, args.pose_topic, args.pose_max_age, args.tool_frame)
@@ -334,7 +334,7 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    from .sim.bench import run_bench
+    from .studies.bench import run_bench
 
     result: dict[str, Any] = dict(run_bench(quick=args.quick, print_table=not args.json))
     if args.json:
@@ -344,22 +344,22 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 def cmd_study(args: argparse.Namespace) -> int:
     if args.name == "handeye":
-        from .sim.handeye_study import run_handeye_study
+        from .studies.handeye_study import run_handeye_study
 
         run_handeye_study(Path(args.out), views=args.views or 20, seed=args.seed, opencv4_python=args.opencv4_python,
                           targets=tuple(args.targets.split(",")), systematic_mm=args.arm_systematic_mm)
         return EXIT_OK
     if args.name == "trust":
-        from .sim.trust_study import trust
+        from .studies.trust_study import trust
 
         trust(Path(args.out), draws=args.draws, views=args.views or 12, only=args.only)
         return EXIT_OK
     if args.name == "model-bias":
-        from .sim.model_bias_study import model_bias_study
+        from .studies.model_bias_study import model_bias_study
 
         model_bias_study(Path(args.out), views=args.views or 12)
         return EXIT_OK
-    from .sim.study import run_study
+    from .studies.study import run_study
 
     run_study(args.name, Path(args.out), views=args.views, seed=args.seed)
     return EXIT_OK
@@ -392,7 +392,7 @@ def cmd_bag(args: argparse.Namespace) -> int:
 
 
 def cmd_experiment(args: argparse.Namespace) -> int:
-    from .sim.experiments import run_experiment
+    from .studies.experiments import run_experiment
 
     run_experiment(args.name, Path(args.out), args.trials, args.seed)
     return EXIT_OK
@@ -414,7 +414,7 @@ def cmd_target(args: argparse.Namespace) -> int:
 def cmd_diff(args: argparse.Namespace) -> int:
     """Projection difference of calibration B against A after the implied rotation (mrcal's
     projection_diff; :mod:`.calibrate.compare`), over the image or a report's observed field."""
-    from .calibrate.compare import camera_from_yaml, projection_difference, region_from_report
+    from .analysis.compare import camera_from_yaml, projection_difference, region_from_report
     from .errors import PascalCalibError
 
     try:

@@ -9,7 +9,10 @@ import time
 import numpy as np
 import pytest
 
-from pascal_calib_ros.calibrate.arm_session import (
+from pascal_calib_ros.detect.detection import Detection
+from pascal_calib_ros.detect.target_detector import detect_target
+from pascal_calib_ros.geometry.transform import Transform
+from pascal_calib_ros.session.arm_session import (
     CaptureSlot,
     PoseBuffer,
     StillnessGate,
@@ -20,10 +23,7 @@ from pascal_calib_ros.calibrate.arm_session import (
     stored_message,
     view_placement,
 )
-from pascal_calib_ros.calibrate.collector import ViewCollector
-from pascal_calib_ros.detect.detection import Detection
-from pascal_calib_ros.detect.target_detector import detect_target
-from pascal_calib_ros.geometry.transform import Transform
+from pascal_calib_ros.session.collector import ViewCollector
 from pascal_calib_ros.sim.render import Pose, SensorModel, render_view
 from pascal_calib_ros.sim.session import SessionSpec
 from pascal_calib_ros.targets import Target, resolve_target

@@ -18,9 +18,9 @@ from pascal_calib_ros.detect.checkerboard import (
     refine_corners,
 )
 from pascal_calib_ros.detect.target_detector import detect_target
-from pascal_calib_ros.sim.bench import pinhole_frame
 from pascal_calib_ros.sim.render import RenderedView
 from pascal_calib_ros.sim.session import SessionSpec, render_session_views, session_views
+from pascal_calib_ros.studies.bench import pinhole_frame
 from pascal_calib_ros.targets import Target, resolve_target
 
 

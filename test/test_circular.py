@@ -153,8 +153,8 @@ def test_pt2_and_pt1_noise_free_layouts_converge_under_rounding(layout: str) -> 
     """Noise-free points in every layout of the paper, shifted by last-bit amounts: Newton stops by
     the residual's rounding level, so every run converges to i' (issue 11: stopping at 1e-15 of
     the step failed on one BLAS kernel and not on others)."""
-    from pascal_calib_ros.sim.experiments import _line as exp_line
-    from pascal_calib_ros.sim.experiments import _trial_views, layout_points
+    from pascal_calib_ros.studies.experiments import _line as exp_line
+    from pascal_calib_ros.studies.experiments import _trial_views, layout_points
 
     rng = np.random.default_rng(7)
     for trial in range(4):

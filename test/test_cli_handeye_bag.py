@@ -17,9 +17,9 @@ import yaml
 
 from pascal_calib_ros.cli import EXIT_CALIB, EXIT_INPUT, main
 from pascal_calib_ros.geometry.transform import Transform
-from pascal_calib_ros.io.arm_bag import MOVING, SAME_REST, read_arm_bag
 from pascal_calib_ros.io.bags import write_arm_bag, write_image_bag
 from pascal_calib_ros.io.hand_eye_yaml import read_hand_eye_yaml, write_poses_yaml
+from pascal_calib_ros.session.arm_bag import MOVING, SAME_REST, read_arm_bag
 from pascal_calib_ros.sim.arm import ArmSession, ArmSpec, hand_eye_errors, simulate_arm_session
 from pascal_calib_ros.targets import Target
 

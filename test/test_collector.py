@@ -1,5 +1,5 @@
-from pascal_calib_ros.calibrate.collector import ViewCollector
 from pascal_calib_ros.detect.detection import Detection
+from pascal_calib_ros.session.collector import ViewCollector
 
 
 def test_collector_accepts_diverse_views_and_reports_coverage(ring_session) -> None:

@@ -22,7 +22,7 @@ import pytest
 from scipy.optimize import minimize
 from scipy.spatial.transform import Rotation
 
-from pascal_calib_ros.calibrate.compare import (
+from pascal_calib_ros.analysis.compare import (
     CompareError,
     camera_from_yaml,
     projection_difference,

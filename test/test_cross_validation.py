@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pascal_calib_ros.calibrate.cross_validation import AGREE_RATIO, cross_validate, interleaved_halves
+from pascal_calib_ros.analysis.cross_validation import AGREE_RATIO, cross_validate, interleaved_halves
 from pascal_calib_ros.calibrate.pipeline import CalibrationError, CalibrationOptions
 from pascal_calib_ros.detect.detection import Detection
 from pascal_calib_ros.detect.target_detector import detect_target

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pascal_calib_ros.sim.experiments import COLUMNS, SOLVERS, _trial_views, pt2_literal, run_experiment
+from pascal_calib_ros.studies.experiments import COLUMNS, SOLVERS, _trial_views, pt2_literal, run_experiment
 
 
 @pytest.mark.parametrize("name", ["methods", "layouts", "literal"])
@@ -34,7 +34,7 @@ def test_experiment_writes_csv_png_and_table(tmp_path: Path, name: str, capsys: 
 def test_literal_pt2_converges_to_an_arbitrary_point_of_the_conic() -> None:
     """Without the vanishing line, Newton on PT2 ends on the conic but not at i'."""
     v = _trial_views(0, 0, 0, 1, 0.0)[0]
-    from pascal_calib_ros.sim.experiments import layout_points
+    from pascal_calib_ros.studies.experiments import layout_points
 
     five = layout_points(v, "average", "fitted")
     got = pt2_literal(five, np.array([300 + 200j, 250 - 100j, 1.0]))

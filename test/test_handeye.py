@@ -31,7 +31,7 @@ from pascal_calib_ros.detect.detection import Detection
 from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.geometry.transform import Transform
 from pascal_calib_ros.io.hand_eye_yaml import PosesYamlError, read_poses_yaml, write_poses_yaml
-from pascal_calib_ros.io.report import PAGES
+from pascal_calib_ros.report.pages import PAGES
 from pascal_calib_ros.sim.arm import ArmSession, ArmSpec, hand_eye_errors, simulate_arm_session
 from pascal_calib_ros.targets import Target
 
@@ -245,7 +245,7 @@ def test_checkerboard_hand_eye_keeps_its_corner_residuals(tmp_path: Path) -> Non
     (observed - predicted), whose RMS is the result's, so its report has residual statistics."""
     import json
 
-    from pascal_calib_ros.io.report import write_report
+    from pascal_calib_ros.report.pages import write_report
     from pascal_calib_ros.targets import resolve_target
 
     board = resolve_target("checkerboard_a4")

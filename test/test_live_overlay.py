@@ -1,9 +1,10 @@
 import numpy as np
 import pytest
 
-from pascal_calib_ros.calibrate.collector import AXES, ViewCollector
 from pascal_calib_ros.calibrate.diagnostics import feature_points, view_hulls
-from pascal_calib_ros.calibrate.live_overlay import (
+from pascal_calib_ros.detect.detection import CircleEdge, Detection
+from pascal_calib_ros.session.collector import AXES, ViewCollector
+from pascal_calib_ros.session.overlay import (
     BAR_EMPTY_BGR,
     BAR_FULL_BGR,
     DETECTED_BGR,
@@ -17,7 +18,6 @@ from pascal_calib_ros.calibrate.live_overlay import (
     draw_live_overlay,
     panel_width,
 )
-from pascal_calib_ros.detect.detection import CircleEdge, Detection
 
 W, H = 800, 600
 SQUARE = np.array([[100.0, 100], [300, 100], [300, 300], [100, 300]])

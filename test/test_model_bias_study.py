@@ -3,9 +3,9 @@ README's table runs all 26 sessions with `pascal-calib study model-bias`)."""
 
 from pascal_calib_ros.calibrate.pipeline import CalibrationOptions, calibrate
 from pascal_calib_ros.detect.target_detector import detect_target
-from pascal_calib_ros.sim.model_bias_study import cases
 from pascal_calib_ros.sim.render import render_view
 from pascal_calib_ros.sim.session import session_views
+from pascal_calib_ros.studies.model_bias_study import cases
 from pascal_calib_ros.targets import resolve_target
 
 

@@ -10,7 +10,7 @@ from pascal_calib_ros.calibrate.diagnostics import distortion_field
 from pascal_calib_ros.calibrate.pipeline import calibrate
 from pascal_calib_ros.geometry.camera import Camera
 from pascal_calib_ros.io.printable import write_printable
-from pascal_calib_ros.io.report import PAGES, write_report
+from pascal_calib_ros.report.pages import PAGES, write_report
 from pascal_calib_ros.targets import Target, resolve_target
 
 

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from pascal_calib_ros.calibrate.residual_stats import (
+from pascal_calib_ros.analysis.residual_stats import (
     REGIONAL_FLOOR_PX,
     contour_normals,
     model_bias,

@@ -398,18 +398,18 @@ def test_detections_show_footprints_coverage_bars_and_state(tmp_path: Path, sess
     from sensor_msgs.msg import Image
     from std_msgs.msg import Header
 
-    from pascal_calib_ros.calibrate.collector import AXES, ViewCollector
     from pascal_calib_ros.calibrate.diagnostics import feature_points, view_hulls
-    from pascal_calib_ros.calibrate.live_overlay import (
+    from pascal_calib_ros.detect.detection import DetectionParams
+    from pascal_calib_ros.detect.target_detector import detect_target
+    from pascal_calib_ros.io.images import IMAGE_SUFFIXES, read_grey
+    from pascal_calib_ros.session.collector import AXES, ViewCollector
+    from pascal_calib_ros.session.overlay import (
         BAR_EMPTY_BGR,
         BAR_FULL_BGR,
         bar_rects,
         draw_live_overlay,
         panel_width,
     )
-    from pascal_calib_ros.detect.detection import DetectionParams
-    from pascal_calib_ros.detect.target_detector import detect_target
-    from pascal_calib_ros.io.images import IMAGE_SUFFIXES, read_grey
 
     min_views = 6
     dom = next_domain_id()

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from pascal_calib_ros.sim.study import LENS_COLUMNS, lenses
+from pascal_calib_ros.studies.study import LENS_COLUMNS, lenses
 
 
 def test_lens_study_fisheye_few_views(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

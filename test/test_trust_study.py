@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from pascal_calib_ros.sim.session import SessionSpec
-from pascal_calib_ros.sim.trust_study import PARAMS, TrustScenario, scenarios, summarise
+from pascal_calib_ros.studies.trust_study import PARAMS, TrustScenario, scenarios, summarise
 
 
 def _draw(err: float, std: float) -> dict:
@@ -46,7 +46,7 @@ def test_projection_against_truth(ring_target, ring_session) -> None:
     """Against itself a calibration differs by nothing; against the true camera by a finite
     amount, beside a finite predicted RMS."""
     from pascal_calib_ros.calibrate.pipeline import calibrate
-    from pascal_calib_ros.sim.trust_study import projection_against_truth
+    from pascal_calib_ros.studies.trust_study import projection_against_truth
 
     cam, _, dets = ring_session
     res = calibrate(dets, ring_target)

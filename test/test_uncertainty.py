@@ -8,8 +8,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from pascal_calib_ros.analysis.compare import projection_difference
 from pascal_calib_ros.calibrate import pipeline
-from pascal_calib_ros.calibrate.compare import projection_difference
 from pascal_calib_ros.calibrate.pipeline import calibrate
 from pascal_calib_ros.calibrate.uncertainty import lag_factor, rotation_displacements, rotation_free_difference_variance
 from pascal_calib_ros.detect.detection import Detection

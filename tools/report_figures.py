@@ -18,9 +18,9 @@ from pathlib import Path
 
 from pascal_calib_ros.calibrate.pipeline import CalibrationOptions, calibrate
 from pascal_calib_ros.detect.target_detector import detect_target
-from pascal_calib_ros.io.report import write_report
-from pascal_calib_ros.sim.model_bias_study import cases
+from pascal_calib_ros.report.pages import write_report
 from pascal_calib_ros.sim.session import render_session_views
+from pascal_calib_ros.studies.model_bias_study import cases
 from pascal_calib_ros.targets import resolve_target
 
 

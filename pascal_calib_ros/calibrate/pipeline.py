@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from ..analysis.residual_stats import ModelBias, ResidualSamples, model_bias, radial, regional, residual_samples
 from ..detect.detection import Detection
 from ..errors import PascalCalibError
 from ..geometry.camera import Camera
@@ -45,7 +46,6 @@ from .refine import (
     refine,
     shape_frame_of,
 )
-from .residual_stats import ModelBias, ResidualSamples, model_bias, radial, regional, residual_samples
 from .uncertainty import ProjectionUncertainty
 from .zhang import calibrate_zhang
 

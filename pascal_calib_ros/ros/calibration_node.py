@@ -44,19 +44,8 @@ from sensor_msgs.srv import SetCameraInfo
 from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
-from ..calibrate.arm_session import (
-    MOVING,
-    CaptureSlot,
-    PoseBuffer,
-    StillnessGate,
-    capture_is_final,
-    hand_eye_doubts,
-    stored_message,
-)
-from ..calibrate.collector import ViewCollector
-from ..calibrate.cross_validation import cross_validate
+from ..analysis.cross_validation import cross_validate
 from ..calibrate.diagnostics import feature_points, view_hulls
-from ..calibrate.live_overlay import draw_live_overlay
 from ..calibrate.pipeline import METHODS, CalibrationError, CalibrationOptions, CalibrationResult, calibrate
 from ..calibrate.refine import DISTORTION_MODELS, SHAPE_CHOICES
 from ..detect.detection import Detection, DetectionParams
@@ -68,6 +57,17 @@ from ..geometry.transform import Transform, TransformError
 from ..io.camera_yaml import CameraInfoData, write_camera_yaml
 from ..io.image_msgs import ImageConversionError, compressed_to_grey, grey_to_image_fields, image_to_grey
 from ..io.images import read_grey
+from ..session.arm_session import (
+    MOVING,
+    CaptureSlot,
+    PoseBuffer,
+    StillnessGate,
+    capture_is_final,
+    hand_eye_doubts,
+    stored_message,
+)
+from ..session.collector import ViewCollector
+from ..session.overlay import draw_live_overlay
 from ..targets import Target, TargetError, resolve_target
 from .conversions import camera_info_msg
 
@@ -684,7 +684,7 @@ class CalibrationNode(Node):
             Path(out_dir).mkdir(parents=True, exist_ok=True)
             (Path(out_dir) / "calibration.json").write_text(json.dumps(summary, indent=1, default=float))
             try:
-                from ..io.report import write_report
+                from ..report.pages import write_report
 
                 frames = Path(out_dir) / "frames"
                 write_report(res, views, out_dir, images=lambda name: read_grey(frames / f"{name}.png")

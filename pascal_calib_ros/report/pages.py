@@ -31,17 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from ..calibrate.diagnostics import (
-    distortion_field,
-    feature_points,
-    grid_pixels,
-    grid_shape,
-    model_valid,
-    observed_field_mask,
-    view_hulls,
-)
-from ..calibrate.pipeline import CalibrationResult
-from ..calibrate.residual_stats import (
+from ..analysis.residual_stats import (
     MIN_EFFECTIVE,
     RADIAL_FLOOR_PX,
     REGIONAL_FLOOR_PX,
@@ -54,6 +44,16 @@ from ..calibrate.residual_stats import (
     regional,
     views_per_region,
 )
+from ..calibrate.diagnostics import (
+    distortion_field,
+    feature_points,
+    grid_pixels,
+    grid_shape,
+    model_valid,
+    observed_field_mask,
+    view_hulls,
+)
+from ..calibrate.pipeline import CalibrationResult
 from ..detect.detection import Detection
 
 FIELD_MARGIN = 30.0  # px around the observed field where the distortion field is still drawn

@@ -36,11 +36,11 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
+from ..calibrate.diagnostics import grid_pixels, grid_shape, hulls_mask
 from ..errors import PascalCalibError
 from ..geometry.camera import Camera
 from ..geometry.transform import Transform
 from ..io.camera_yaml import read_camera_yaml
-from .diagnostics import grid_pixels, grid_shape, hulls_mask
 
 DEFAULT_STEP = 16.0  # px between grid points
 MIN_POINTS = 3  # fewer common grid points leave the rotation undetermined

@@ -15,12 +15,12 @@ from typing import Any
 
 import numpy as np
 
+from ..analysis.residual_stats import model_bias, radial, regional
 from ..calibrate.pipeline import CalibrationError, CalibrationOptions, calibrate
-from ..calibrate.residual_stats import model_bias, radial, regional
 from ..detect.target_detector import detect_target
+from ..sim.render import render_view
+from ..sim.session import SessionSpec, session_views
 from ..targets import resolve_target
-from .render import render_view
-from .session import SessionSpec, session_views
 from .study import lens_cases, markdown_table
 
 TARGETS = ("ring_a4", "ring_grid_a4", "disc_grid_a4", "pascal_board_a3", "checkerboard_a4")

@@ -22,9 +22,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..calibrate.arm_session import PoseBuffer
 from ..geometry.transform import Transform, TransformError
-from .bags import (
+from ..io.bags import (
     COMPRESSED_TYPE,
     POSE_TYPE,
     BagError,
@@ -34,7 +33,8 @@ from .bags import (
     pose_topics,
     read_session,
 )
-from .image_msgs import ImageConversionError, compressed_to_grey, image_to_grey
+from ..io.image_msgs import ImageConversionError, compressed_to_grey, image_to_grey
+from .arm_session import PoseBuffer
 
 STILL_M = 1e-6  # the robot rests if its pose changes by at most this (translation) ...
 STILL_RAD = 1e-6  # ... and this (rotation) over the samples around a frame

@@ -19,9 +19,9 @@ import numpy as np
 from ..calibrate.pipeline import CalibrationOptions, calibrate
 from ..detect.target_detector import detect_target
 from ..geometry.camera import Camera
+from ..sim.render import BACKGROUND, Pose, SensorModel, apply_sensor, reflectance, render_view
+from ..sim.session import SessionSpec, render_session_views, session_views
 from ..targets import Target, packaged_targets_dir, resolve_target
-from .render import BACKGROUND, Pose, SensorModel, apply_sensor, reflectance, render_view
-from .session import SessionSpec, render_session_views, session_views
 
 SIZES = ((800, 600), (1920, 1080), (2456, 2058))
 LEGACY_TARGET = "ring_a4"  # the ``detect`` rows (detection against cv2.Canny) are this target's
@@ -166,7 +166,7 @@ def run_bench(quick: bool = False, print_table: bool = True) -> dict[str, list[d
     # the report of that calibration: report.pdf (7 pages), report.png, report.json, worst views on their images
     import tempfile
 
-    from ..io.report import write_report
+    from ..report.pages import write_report
 
     gres = calibrate(gdets, grid, CalibrationOptions())
     imgs = {d.name: v.image for d, v in zip(gdets, gviews, strict=True)}

@@ -28,9 +28,9 @@ from ..calibrate.pipeline import CalibrationError, CalibrationOptions, calibrate
 from ..detect.detection import DetectionParams
 from ..detect.target_detector import detect_target
 from ..geometry.camera import Camera, calibration_errors
+from ..sim.render import features_in_image, render_view
+from ..sim.session import SessionSpec, render_session_views, session_views
 from ..targets import resolve_target
-from .render import features_in_image, render_view
-from .session import SessionSpec, render_session_views, session_views
 
 
 @dataclass(frozen=True)

@@ -24,16 +24,16 @@ from typing import Any
 
 import numpy as np
 
-from ..calibrate.compare import projection_difference
-from ..calibrate.cross_validation import difference_share
+from ..analysis.compare import projection_difference
+from ..analysis.cross_validation import difference_share
 from ..calibrate.pipeline import CalibrationError, CalibrationOptions, CalibrationResult, calibrate
 from ..calibrate.uncertainty import rotation_displacements
 from ..detect.detection import DetectionParams
 from ..detect.target_detector import detect_target
 from ..geometry.camera import Camera
+from ..sim.render import render_view
+from ..sim.session import SessionSpec, session_views
 from ..targets import resolve_target
-from .render import render_view
-from .session import SessionSpec, session_views
 from .study import lens_cases
 
 PARAMS = ("fx", "fy", "cx", "cy")

@@ -376,7 +376,7 @@ def run_literal(trials: int, seed: int) -> list[dict[str, Any]]:
 
 # -- rendered board: Table 1 and Table 2 analogs ------------------------------------------------
 def _board_sessions(trials: int, seed: int, k1: float, views: int = 10) -> list[tuple[Any, list[Detection]]]:
-    from .session import SessionSpec, render_session_views
+    from ..sim.session import SessionSpec, render_session_views
 
     target = resolve_target("pascal_board_a3")
     out = []

@@ -39,11 +39,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..calibrate.pipeline import CalibrationError, CalibrationOptions, CalibrationResult, calibrate
+from ..calibrate.uncertainty import rotation_displacements, rotation_free_difference_variance
 from ..detect.detection import Detection
 from ..targets import Target
 from .compare import CompareError, ProjectionDiff, projection_difference
-from .pipeline import CalibrationError, CalibrationOptions, CalibrationResult, calibrate
-from .uncertainty import rotation_displacements, rotation_free_difference_variance
 
 # The halves agree when their difference is at most this many times what their uncertainties
 # predict. The difference is dominated by a few parameters (focal length, k1), so its squared RMS

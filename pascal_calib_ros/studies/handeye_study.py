@@ -35,8 +35,8 @@ from ..calibrate.handeye import calibrate_hand_eye
 from ..calibrate.pipeline import CalibrationError
 from ..detect.target_detector import detect_target
 from ..geometry.transform import Transform
+from ..sim.arm import ArmSpec, arm_poses, hand_eye_errors, render_arm_images
 from ..targets import resolve_target
-from .arm import ArmSpec, arm_poses, hand_eye_errors, render_arm_images
 
 TOOL = Path(__file__).resolve().parents[2] / "tools" / "opencv_handeye.py"
 
