@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 export AMENT_PREFIX_PATH := $(abspath $(VENV))
 
-.PHONY: demo test lint typecheck unit kernels bench study experiments clean venv mrcal-venv mrcal-judge
+.PHONY: demo test lint typecheck unit kernels bench study experiments clean venv docs mrcal-venv mrcal-judge
 
 venv: $(STAMP)
 
@@ -23,6 +23,11 @@ test: lint typecheck unit kernels
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check pascal_calib_ros test tools
+	$(VENV)/bin/lint-imports --no-logo --no-cache
+
+# the node tables of docs/nodes.md from the nodes' own tables (a test fails when the page is stale)
+docs: $(STAMP)
+	$(PY) -m pascal_calib_ros.ros.docs
 
 typecheck: $(STAMP)
 	$(VENV)/bin/mypy pascal_calib_ros

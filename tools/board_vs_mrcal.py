@@ -37,10 +37,12 @@ from typing import Any
 import cv2
 import numpy as np
 
-from pascal_calib_ros.calibrate.diagnostics import grid_pixels, grid_shape, observed_field_mask
-from pascal_calib_ros.calibrate.pipeline import CalibrationError, CalibrationOptions, calibrate
-from pascal_calib_ros.calibrate.uncertainty import ProjectionUncertainty
+from pascal_calib_ros.analysis.uncertainty import ProjectionUncertainty, projection_uncertainty_of
+from pascal_calib_ros.calibrate.options import CalibrationOptions
+from pascal_calib_ros.calibrate.pipeline import calibrate
+from pascal_calib_ros.calibrate.result import CalibrationError
 from pascal_calib_ros.detect.target_detector import detect_target
+from pascal_calib_ros.geometry.image_field import grid_pixels, grid_shape, observed_field_mask
 from pascal_calib_ros.io.images import read_grey
 from pascal_calib_ros.targets import Target, resolve_target
 
@@ -138,7 +140,7 @@ def our_sigmas(row: dict[str, Any], distance: float, mask: np.ndarray) -> None:
         if ref is None or ref.covariance is None:
             row[key] = {"median_px": float("nan"), "worst_px": float("nan")}
             continue
-        pu = ref.projection_uncertainty(res.width, res.height, d)
+        pu = projection_uncertainty_of(ref, res.width, res.height, d)
         row[key] = sigma_summary(pu.pixels, pu.sigma, d, mask)
 
 

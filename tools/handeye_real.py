@@ -35,9 +35,10 @@ import cv2
 import numpy as np
 
 from pascal_calib_ros.calibrate.handeye import calibrate_hand_eye
-from pascal_calib_ros.calibrate.pipeline import CalibrationError
+from pascal_calib_ros.calibrate.result import CalibrationError
 from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.geometry.transform import Transform
+from pascal_calib_ros.report.text import hand_eye_summary
 from pascal_calib_ros.targets import load_target
 
 TOOL = Path(__file__).resolve().parent / "opencv_handeye.py"
@@ -128,7 +129,7 @@ def main(argv: list[str] | None = None) -> int:
                 res[half]["ours"] = r.hand_eye
                 sig[half] = (r.translation_std_mm, r.rotation_std_deg)
                 if verbose:
-                    print(f"--- half {half} ({len(sel)} views)\n{r.summary()}", flush=True)
+                    print(f"--- half {half} ({len(sel)} views)\n{hand_eye_summary(r)}", flush=True)
             except CalibrationError as e:
                 print(f"half {half}: ours failed: {e}")
             if a.opencv4_python:

@@ -16,7 +16,9 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from pascal_calib_ros.calibrate.pipeline import CalibrationOptions, calibrate
+from pascal_calib_ros.analysis.assessment import assess
+from pascal_calib_ros.calibrate.options import CalibrationOptions
+from pascal_calib_ros.calibrate.pipeline import calibrate
 from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.report.pages import write_report
 from pascal_calib_ros.sim.session import render_session_views
@@ -38,7 +40,7 @@ def main() -> None:
     for distortion in ("plumb_bob", "rational_polynomial"):
         res = calibrate(dets, target, CalibrationOptions(distortion=distortion))
         with tempfile.TemporaryDirectory() as tmp:
-            files = write_report(res, dets, tmp, images=images.get, page_images=distortion == "plumb_bob")
+            files = write_report(assess(res), dets, tmp, images=images.get, page_images=distortion == "plumb_bob")
             bias = json.loads(files.json.read_text())["residuals"]["model_bias"]
             print(f"{distortion}: rms {res.rms:.4f} px, model bias detected {bias['detected']}, largest regional "
                   f"mean {bias['max_regional_px']:.4f} px, radial {bias['radial_px']}")

@@ -28,7 +28,6 @@ R p_i + t lies beyond B's monotonic range or behind a non-fisheye B) are left ou
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -36,11 +35,12 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from ..calibrate.diagnostics import grid_pixels, grid_shape, hulls_mask
 from ..errors import PascalCalibError
 from ..geometry.camera import Camera
+from ..geometry.image_field import grid_pixels, grid_shape, hulls_mask
 from ..geometry.transform import Transform
 from ..io.camera_yaml import read_camera_yaml
+from ..io.report_json import ReportJsonError, read_view_hulls
 
 DEFAULT_STEP = 16.0  # px between grid points
 MIN_POINTS = 3  # fewer common grid points leave the rotation undetermined
@@ -213,20 +213,9 @@ class Region:
 
 
 def region_from_report(path: str | Path) -> Region:
-    """The observed field stored in a ``report.json`` of :func:`~..io.report.write_report`
-    (``coverage.view_hulls`` and ``image.width/height``)."""
-    p = Path(path)
+    """The observed field stored in a calibration's ``report.json`` (:func:`~..io.report_json.
+    read_view_hulls`)."""
     try:
-        doc = json.loads(p.read_text())
-        hulls = [np.asarray(h, float).reshape(-1, 2) for h in doc["coverage"]["view_hulls"]]
-        width, height = int(doc["image"]["width"]), int(doc["image"]["height"])
-    except OSError as e:
-        raise CompareError(f"{p}: {e.strerror or e}") from None
-    except json.JSONDecodeError as e:
-        raise CompareError(f"{p}: not a JSON file ({e})") from None
-    except (KeyError, TypeError, ValueError) as e:
-        raise CompareError(f"{p}: not a calibration report with coverage.view_hulls and image size ({e!r})") from None
-    hulls = [h for h in hulls if len(h) >= 3 and np.all(np.isfinite(h))]
-    if not hulls:
-        raise CompareError(f"{p}: the report has no view hulls (no used view)")
-    return Region(hulls, width, height)
+        return Region(*read_view_hulls(path))
+    except ReportJsonError as e:
+        raise CompareError(str(e)) from None

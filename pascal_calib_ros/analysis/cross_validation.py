@@ -39,11 +39,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..calibrate.pipeline import CalibrationError, CalibrationOptions, CalibrationResult, calibrate
-from ..calibrate.uncertainty import rotation_displacements, rotation_free_difference_variance
+from ..calibrate.options import CalibrationOptions
+from ..calibrate.pipeline import calibrate
+from ..calibrate.result import CalibrationError, CalibrationResult
 from ..detect.detection import Detection
 from ..targets import Target
+from .assessment import assess
 from .compare import CompareError, ProjectionDiff, projection_difference
+from .uncertainty import rotation_displacements, rotation_free_difference_variance
 
 # The halves agree when their difference is at most this many times what their uncertainties
 # predict. The difference is dominated by a few parameters (focal length, k1), so its squared RMS
@@ -188,7 +191,8 @@ def cross_validate(dets: list[Detection], target: Target, options: CalibrationOp
         except CalibrationError as e:
             raise CalibrationError(f"half {label} ({len(idx)} views) cannot be calibrated: {e}") from None
     res_a, res_b = halves
-    if res_a.projection is None or res_b.projection is None:
+    pa, pb = assess(res_a).projection, assess(res_b).projection
+    if pa is None or pb is None:
         raise CalibrationError("a half has no projection uncertainty (no parameter covariance); cannot judge the "
                                "difference")
     mask_a = res_a.observed_field()
@@ -202,5 +206,5 @@ def cross_validate(dets: list[Detection], target: Target, options: CalibrationOp
         raise CalibrationError(f"the halves cannot be compared: {e}") from None
     expected = expected_difference(res_a, res_b, diff.pixels)
     return CrossValidation((res_a, res_b), ([v.name for v in res_a.views], [v.name for v in res_b.views]), diff,
-                           expected, region, (res_a.projection.distance, res_b.projection.distance),
+                           expected, region, (pa.distance, pb.distance),
                            _hints(options, target))

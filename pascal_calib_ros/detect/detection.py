@@ -66,3 +66,13 @@ class Detection:
 
 
 DEFAULT_PARAMS = DetectionParams()
+
+
+def feature_points(det: Detection) -> np.ndarray:
+    """(N, 2) feature points of a detection: its edge points and measured checkerboard corners
+    (corners the detector rejected are NaN and left out)."""
+    parts = [np.asarray(e.points, float).reshape(-1, 2) for e in det.edges]
+    if det.corners is not None:
+        c = np.asarray(det.corners, float).reshape(-1, 2)
+        parts.append(c[np.all(np.isfinite(c), 1)])
+    return np.concatenate(parts) if parts else np.zeros((0, 2))

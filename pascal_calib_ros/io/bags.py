@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 
 from ..errors import PascalCalibError
+from ..geometry.transform import Transform
 from .images import read_grey
 
 IMAGE_TYPE = "sensor_msgs/msg/Image"
@@ -245,7 +246,80 @@ def arm_schedule(n_images: int, rate: float, hold: float, pose_rate: float, t0_n
     return sorted(out, key=lambda m: (m[0], m[2] == "image"))
 
 
-def write_arm_bag(out: str | Path, images: list[Path], poses_yaml: str | Path, topic: str = "/image",
+class _ArmMessages:
+    """The messages of an arm session bag: each image file read once (sent at every frame of its pose)
+    and the tool pose as PoseStamped (``pose_type`` "pose": header.frame_id = the base) or
+    TransformStamped ("transform": child_frame_id = the tool)."""
+
+    def __init__(self, images: list[Path], compressed: bool, frame_id: str, base: str, tool: str, pose_type: str):
+        from rosbags.typesys.stores.ros2_jazzy import builtin_interfaces__msg__Time as Time
+        from rosbags.typesys.stores.ros2_jazzy import std_msgs__msg__Header as Header
+
+        self.Time, self.Header = Time, Header
+        self.images, self.compressed, self.frame_id = images, compressed, frame_id
+        self.base, self.tool, self.pose_type = base, tool, pose_type
+        self.payload: dict[int, tuple[str, Any]] = {}
+
+    def stamp(self, ts: int) -> Any:
+        return self.Time(sec=ts // 10**9, nanosec=ts % 10**9)
+
+    def image(self, k: int, ts: int) -> Any:
+        from rosbags.typesys.stores.ros2_jazzy import sensor_msgs__msg__CompressedImage as CompressedImage
+        from rosbags.typesys.stores.ros2_jazzy import sensor_msgs__msg__Image as Image
+
+        header = self.Header(stamp=self.stamp(ts), frame_id=self.frame_id)
+        path = self.images[k]
+        if k not in self.payload:
+            if self.compressed:
+                data = path.read_bytes()
+                if cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED) is None:
+                    raise BagError(f"{path}: not a readable image")
+                self.payload[k] = ("png" if path.suffix.lower() == ".png" else "jpeg", np.frombuffer(data, np.uint8))
+            else:
+                self.payload[k] = ("", read_grey(path))
+        fmt, data = self.payload[k]
+        if self.compressed:
+            return CompressedImage(header=header, format=fmt, data=data)
+        enc = "mono16" if data.dtype == np.uint16 else "mono8"
+        return Image(header=header, height=data.shape[0], width=data.shape[1], encoding=enc, is_bigendian=0,
+                     step=data.shape[1] * data.dtype.itemsize,
+                     data=np.frombuffer(np.ascontiguousarray(data).tobytes(), np.uint8))
+
+    def pose(self, T: Transform, ts: int) -> Any:
+        from rosbags.typesys.stores.ros2_jazzy import geometry_msgs__msg__Point as Point
+        from rosbags.typesys.stores.ros2_jazzy import geometry_msgs__msg__Pose as Pose
+        from rosbags.typesys.stores.ros2_jazzy import geometry_msgs__msg__PoseStamped as PoseStamped
+        from rosbags.typesys.stores.ros2_jazzy import geometry_msgs__msg__Quaternion as Quaternion
+        from rosbags.typesys.stores.ros2_jazzy import geometry_msgs__msg__Transform as TransformMsg
+        from rosbags.typesys.stores.ros2_jazzy import geometry_msgs__msg__TransformStamped as TransformStamped
+        from rosbags.typesys.stores.ros2_jazzy import geometry_msgs__msg__Vector3 as Vector3
+
+        t, q = T.translation, T.quat
+        header = self.Header(stamp=self.stamp(ts), frame_id=self.base)
+        rotation = Quaternion(x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))
+        if self.pose_type == "pose":
+            return PoseStamped(header=header, pose=Pose(position=Point(x=float(t[0]), y=float(t[1]), z=float(t[2])),
+                                                        orientation=rotation))
+        return TransformStamped(header=header, child_frame_id=self.tool, transform=TransformMsg(
+            translation=Vector3(x=float(t[0]), y=float(t[1]), z=float(t[2])), rotation=rotation))
+
+
+def _arm_poses(images: list[Path], poses_yaml: str | Path) -> tuple[str, str, dict[str, Transform]]:
+    """(base frame, tool frame, poses by file name) of POSES.yaml, every image having one."""
+    from .hand_eye_yaml import PosesYamlError, read_poses_yaml
+
+    try:
+        base, tool, table = read_poses_yaml(poses_yaml)
+    except PosesYamlError as e:
+        raise BagError(str(e)) from None
+    missing = [p.name for p in images if p.name not in table]
+    if missing:
+        raise BagError(f"{poses_yaml} has no pose for {', '.join(missing[:5])}"
+                       + (f" and {len(missing) - 5} more" if len(missing) > 5 else ""))
+    return base, tool, table
+
+
+def write_arm_bag(out: str | Path, images: list[Path], poses_yaml: str | Path, *, topic: str = "/image",
                   pose_topic: str = "/tool_pose", storage: str = "sqlite3", compressed: bool = False,
                   rate: float = 5.0, hold: float = 1.0, pose_rate: float = 20.0, frame_id: str = "camera",
                   pose_type: str = "pose") -> Path:
@@ -255,79 +329,26 @@ def write_arm_bag(out: str | Path, images: list[Path], poses_yaml: str | Path, t
     (``pose_type`` "pose": header.frame_id = the base) or TransformStamped ("transform":
     child_frame_id = the tool) on ``pose_topic``."""
     from rosbags.rosbag2 import StoragePlugin, Writer
-    from rosbags.typesys.stores.ros2_jazzy import builtin_interfaces__msg__Time as Time
-    from rosbags.typesys.stores.ros2_jazzy import geometry_msgs__msg__Point as Point
-    from rosbags.typesys.stores.ros2_jazzy import geometry_msgs__msg__Pose as Pose
-    from rosbags.typesys.stores.ros2_jazzy import geometry_msgs__msg__PoseStamped as PoseStamped
-    from rosbags.typesys.stores.ros2_jazzy import geometry_msgs__msg__Quaternion as Quaternion
-    from rosbags.typesys.stores.ros2_jazzy import geometry_msgs__msg__Transform as TransformMsg
-    from rosbags.typesys.stores.ros2_jazzy import geometry_msgs__msg__TransformStamped as TransformStamped
-    from rosbags.typesys.stores.ros2_jazzy import geometry_msgs__msg__Vector3 as Vector3
-    from rosbags.typesys.stores.ros2_jazzy import sensor_msgs__msg__CompressedImage as CompressedImage
-    from rosbags.typesys.stores.ros2_jazzy import sensor_msgs__msg__Image as Image
-    from rosbags.typesys.stores.ros2_jazzy import std_msgs__msg__Header as Header
-
-    from .hand_eye_yaml import PosesYamlError, read_poses_yaml
 
     if storage not in ("sqlite3", "mcap"):
         raise BagError(f"storage must be sqlite3 or mcap, got {storage!r}")
     if pose_type not in ("pose", "transform"):
         raise BagError(f"pose type must be pose or transform, got {pose_type!r}")
-    try:
-        base, tool, table = read_poses_yaml(poses_yaml)
-    except PosesYamlError as e:
-        raise BagError(str(e)) from None
-    missing = [p.name for p in images if p.name not in table]
-    if missing:
-        raise BagError(f"{poses_yaml} has no pose for {', '.join(missing[:5])}"
-                       + (f" and {len(missing) - 5} more" if len(missing) > 5 else ""))
+    base, tool, table = _arm_poses(images, poses_yaml)
     out_p = Path(out)
     if out_p.exists():
         raise BagError(f"{out_p} exists; rosbag2 writes a new folder")
-    schedule = arm_schedule(len(images), rate, hold, pose_rate)
     store = _typestore()
-    plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
     img_type = COMPRESSED_TYPE if compressed else IMAGE_TYPE
     msg_pose_type = POSE_TYPE if pose_type == "pose" else TRANSFORM_TYPE
-    payload: dict[int, tuple[str, Any]] = {}  # each file read once, sent at every frame of its pose
-
-    def image_msg(k: int, header: Any) -> Any:
-        path = images[k]
-        if k not in payload:
-            if compressed:
-                data = path.read_bytes()
-                if cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED) is None:
-                    raise BagError(f"{path}: not a readable image")
-                payload[k] = ("png" if path.suffix.lower() == ".png" else "jpeg", np.frombuffer(data, np.uint8))
-            else:
-                payload[k] = ("", read_grey(path))
-        fmt, data = payload[k]
-        if compressed:
-            return CompressedImage(header=header, format=fmt, data=data)
-        enc = "mono16" if data.dtype == np.uint16 else "mono8"
-        return Image(header=header, height=data.shape[0], width=data.shape[1], encoding=enc, is_bigendian=0,
-                     step=data.shape[1] * data.dtype.itemsize,
-                     data=np.frombuffer(np.ascontiguousarray(data).tobytes(), np.uint8))
-
-    with Writer(out_p, version=9, storage_plugin=plugin) as writer:
+    msgs = _ArmMessages(images, compressed, frame_id, base, tool, pose_type)
+    with Writer(out_p, version=9, storage_plugin=StoragePlugin.MCAP if storage == "mcap" else
+                StoragePlugin.SQLITE3) as writer:
         img_conn = writer.add_connection(topic, img_type, typestore=store)
         pose_conn = writer.add_connection(pose_topic, msg_pose_type, typestore=store)
-        for ts, k, kind in schedule:
-            stamp = Time(sec=ts // 10**9, nanosec=ts % 10**9)
+        for ts, k, kind in arm_schedule(len(images), rate, hold, pose_rate):
             if kind == "image":
-                msg = image_msg(k, Header(stamp=stamp, frame_id=frame_id))
-                writer.write(img_conn, ts, store.serialize_cdr(msg, img_type))
-                continue
-            T = table[images[k].name]
-            t, q = T.translation, T.quat
-            header = Header(stamp=stamp, frame_id=base)
-            if pose_type == "pose":
-                pmsg: Any = PoseStamped(header=header, pose=Pose(
-                    position=Point(x=float(t[0]), y=float(t[1]), z=float(t[2])),
-                    orientation=Quaternion(x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))))
+                writer.write(img_conn, ts, store.serialize_cdr(msgs.image(k, ts), img_type))
             else:
-                pmsg = TransformStamped(header=header, child_frame_id=tool, transform=TransformMsg(
-                    translation=Vector3(x=float(t[0]), y=float(t[1]), z=float(t[2])),
-                    rotation=Quaternion(x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))))
-            writer.write(pose_conn, ts, store.serialize_cdr(pmsg, msg_pose_type))
+                writer.write(pose_conn, ts, store.serialize_cdr(msgs.pose(table[images[k].name], ts), msg_pose_type))
     return out_p

@@ -30,6 +30,7 @@ Quaternions within 1e-3 of unit norm are normalised, others refused
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -110,36 +111,50 @@ def write_poses_yaml(path: str | Path, frame_id: str, child_frame_id: str, poses
     return p
 
 
-def _floats(v: np.ndarray) -> list[float]:
+def _floats(v: np.ndarray | tuple[float, ...]) -> list[float]:
     return [float(x) for x in np.asarray(v, float).ravel()]
 
 
-def hand_eye_document(result: Any, parent_frame: str, child_frame: str, target_frame: str) -> dict[str, Any]:
-    """The HAND_EYE.yaml content of a :class:`~..calibrate.handeye.HandEyeResult`."""
-    X, Y = result.hand_eye, result.target
-    return {
-        "mode": result.mode,
-        "parent_frame": parent_frame,
-        "child_frame": child_frame,
-        "translation": _floats(X.translation),
-        "rotation": _floats(X.quat),
-        "translation_std_mm": _floats(result.translation_std_mm),
-        "rotation_std_deg": _floats(result.rotation_std_deg),
-        "target_frame": target_frame,
-        "target_translation": _floats(Y.translation),
-        "target_rotation": _floats(Y.quat),
-        "views_used": int(result.views_used),
-        "rms_px": float(result.rms_px),
-    }
+@dataclass(frozen=True)
+class HandEyeRecord:
+    """What HAND_EYE.yaml holds (module docstring): the camera's pose ``X`` in ``parent_frame``
+    (camera-frame points into the parent frame) with its standard deviations (mm, deg per parent
+    axis), the target's pose ``target`` in ``target_frame``, the views used and the RMS (px)."""
+
+    mode: str
+    parent_frame: str
+    child_frame: str
+    X: Transform
+    translation_std_mm: tuple[float, float, float]
+    rotation_std_deg: tuple[float, float, float]
+    target_frame: str
+    target: Transform
+    views_used: int
+    rms_px: float
+
+    def document(self) -> dict[str, Any]:
+        """The YAML mapping."""
+        return {
+            "mode": self.mode,
+            "parent_frame": self.parent_frame,
+            "child_frame": self.child_frame,
+            "translation": _floats(self.X.translation),
+            "rotation": _floats(self.X.quat),
+            "translation_std_mm": _floats(self.translation_std_mm),
+            "rotation_std_deg": _floats(self.rotation_std_deg),
+            "target_frame": self.target_frame,
+            "target_translation": _floats(self.target.translation),
+            "target_rotation": _floats(self.target.quat),
+            "views_used": int(self.views_used),
+            "rms_px": float(self.rms_px),
+        }
 
 
-def write_hand_eye_yaml(path: str | Path, result: Any, parent_frame: str, child_frame: str, target_frame: str
-                        ) -> Path:
-    """Write HAND_EYE.yaml (module docstring) for a HandEyeResult; returns the path."""
+def write_hand_eye_yaml(path: str | Path, record: HandEyeRecord) -> Path:
+    """Write HAND_EYE.yaml (module docstring); returns the path."""
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    doc = hand_eye_document(result, parent_frame, child_frame, target_frame)
-    p.write_text(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None))
+    p.write_text(yaml.safe_dump(record.document(), sort_keys=False, default_flow_style=None))
     return p
 
 

@@ -17,7 +17,7 @@ Pages of the PDF, in the order a person asks:
 8. with a hand-eye result (``pascal-calib handeye --report``, the node with ``hand_eye``): the
    transform X with its sigma (and the arm-accuracy share of it), the arm's pose error the data
    imply, and per view the disagreement between the robot chain and the images.
-The numbers come from :mod:`..calibrate.residual_stats` and :mod:`..calibrate.diagnostics`.
+The numbers come from :mod:`..analysis.residual_stats`, :mod:`..geometry.image_field` and :mod:`..geometry.model_field`.
 """
 
 from __future__ import annotations
@@ -31,185 +31,31 @@ from typing import Any
 
 import numpy as np
 
+from ..analysis.assessment import Assessment
 from ..analysis.residual_stats import (
     MIN_EFFECTIVE,
     RADIAL_FLOOR_PX,
     REGIONAL_FLOOR_PX,
     ModelBias,
-    Radial,
-    Regional,
-    ResidualSamples,
-    model_bias,
-    radial,
-    regional,
-    views_per_region,
 )
-from ..calibrate.diagnostics import (
-    distortion_field,
-    feature_points,
-    grid_pixels,
-    grid_shape,
-    model_valid,
-    observed_field_mask,
-    view_hulls,
-)
-from ..calibrate.pipeline import CalibrationResult
 from ..detect.detection import Detection
+from .numbers import (
+    DISTORTION_STEP,
+    FIELD_MARGIN,
+    VALID_STEP,
+    ReportData,
+    hand_eye_numbers,
+    report_data,
+    report_numbers,
+    worst_views,
+)
+from .text import hand_eye_summary, projection_line, summary_lines
 
-FIELD_MARGIN = 30.0  # px around the observed field where the distortion field is still drawn
-DISTORTION_STEP = 32  # px between arrows of the distortion field
-VALID_STEP = 8  # px between samples of the model's valid region
 MAX_PLOT_POINTS = 30_000  # residual scatter plots draw at most this many points (evenly thinned)
-WORST_VIEWS = 3
 MAGNIFY_WORST = 0.04  # the 99th percentile residual of a worst view is drawn this fraction of the image size
 
 PAGES = 7  # 8 with a hand-eye result
 ImageSource = Callable[[str], "np.ndarray | None"]  # view name -> grey image (None: not at hand)
-
-
-@dataclass
-class ReportData:
-    """Everything the pages and the JSON show, computed once."""
-
-    res: CalibrationResult
-    dets: list[Detection]
-    used_names: list[str]  # names of the used views, in the order of res.edge_points
-    hulls: list[np.ndarray]
-    field: np.ndarray  # (h, w) bool: the observed field
-    samples: ResidualSamples
-    regional: Regional
-    radial: Radial
-    bias: ModelBias
-    views_per_region: np.ndarray
-    dist_uv: np.ndarray  # distortion field over the observed field + FIELD_MARGIN
-    dist_disp: np.ndarray
-    valid_grid: np.ndarray  # (rows, cols) bool on a VALID_STEP grid: the model holds there
-    view_rms: np.ndarray  # RMS of each used view's residual vectors (edges and corners); NaN: none
-
-
-def report_data(res: CalibrationResult, dets: list[Detection]) -> ReportData:
-    """Compute the report's numbers for a calibration and its detections."""
-    w, h = res.width, res.height
-    cam = res.camera()
-    pts = res.feature_points()
-    if not sum(len(p) for p in pts):  # not refined (closed form only): the used detections' features
-        used = {v.name for v in res.views if v.used}
-        pts = [feature_points(d) for d in dets if d.name in used]
-    field = observed_field_mask(pts, w, h)
-    s = res.residual_samples()
-    reg = regional(s, w, h)
-    rad = radial(s, (float(res.K[0, 2]), float(res.K[1, 2])))
-    uv, disp = distortion_field(cam, DISTORTION_STEP, mask=res.observed_field(FIELD_MARGIN))
-    held = model_valid(cam, uv)  # a fold inside the margin must not set the colour scale either
-    uv, disp = uv[held], disp[held]
-    valid = model_valid(cam, grid_pixels(w, h, VALID_STEP)).reshape(grid_shape(w, h, VALID_STEP))
-    n_views = len(pts)
-    sq = np.bincount(s.view, np.sum(s.vectors**2, 1), minlength=n_views)
-    cnt = np.bincount(s.view, minlength=n_views)
-    return ReportData(res, dets, [v.name for v in res.views if v.used][:n_views], view_hulls(pts), field, s, reg, rad,
-                      model_bias(reg, rad, w, h, res.model), views_per_region(pts, w, h, reg.grid), uv, disp, valid,
-                      np.where(cnt > 0, np.sqrt(sq / np.maximum(cnt, 1)), np.nan))
-
-
-def per_circle_rms(res: CalibrationResult) -> dict[str, float]:
-    """RMS edge residual (px) of every circle over all used views, keyed by the circle's feature
-    name (``ring/outer``, ``disc_grid[2,5]`` ...) or its index; worst first."""
-    if not res.edge_circles or not sum(len(c) for c in res.edge_circles):
-        return {}
-    ids = np.concatenate(res.edge_circles).astype(int)
-    r = np.concatenate(res.edge_residuals)
-    count = np.bincount(ids)
-    rms = np.sqrt(np.bincount(ids, r * r) / np.maximum(count, 1))
-    names = [res.circle_names[c] if c < len(res.circle_names) else str(c) for c in range(len(count))]
-    return {names[c]: float(rms[c]) for c in np.argsort(-rms) if count[c]}
-
-
-def worst_views(d: ReportData, n: int = WORST_VIEWS) -> list[int]:
-    """Indices (into the used views) of the ``n`` views with the largest residual RMS."""
-    rms = d.view_rms
-    return [int(k) for k in np.argsort(-np.nan_to_num(rms, nan=-1.0)) if np.isfinite(rms[k])][:n]
-
-
-def _histogram(d: ReportData) -> dict[str, Any]:
-    """Histogram of the residuals (edge residuals along their normal, corner residual components)
-    and the counts a noise of each view's own RMS would give (a mixture of normals)."""
-    from scipy.stats import norm
-
-    res = d.res
-    parts = [(np.asarray(r, float), v) for v, r in enumerate(res.edge_residuals)]
-    parts += [(np.asarray(c, float).ravel(), v) for v, c in enumerate(res.corner_residuals)]
-    vals = np.concatenate([p for p, _ in parts]) if parts else np.zeros(0)
-    views = np.concatenate([np.full(len(p), v) for p, v in parts]) if parts else np.zeros(0, int)
-    # each view's noise: the RMS of its own values
-    sig_v = np.array([float(np.sqrt(np.mean(p * p))) if len(p) else 0.0 for p in
-                      [vals[views == v] for v in range(len(d.view_rms))]])
-    lim = float(np.percentile(np.abs(vals), 99.5)) if len(vals) else 1.0
-    edges = np.linspace(-lim, lim, 41)
-    counts = np.histogram(vals, edges)[0]
-    expected = np.zeros(len(edges) - 1)
-    for v, sg in enumerate(sig_v):
-        m = int(np.sum(views == v))
-        if m and sg > 0:
-            expected += m * np.diff(norm.cdf(edges / sg))
-    return {"edges_px": np.round(edges, 5).tolist(), "count": counts.tolist(),
-            "expected": np.round(expected, 2).tolist(), "expected_from": "each view's own RMS (normal noise)"}
-
-
-def report_numbers(d: ReportData) -> dict[str, Any]:
-    """``report.json``: every number the pages show (keys documented in the README)."""
-    res = d.res
-    w, h = res.width, res.height
-    mag = np.linalg.norm(d.dist_disp, axis=1) if len(d.dist_disp) else np.zeros(1)
-    rad = d.radial
-    ring_ok = rad.effective > 0
-    valid_px = np.repeat(np.repeat(d.valid_grid, VALID_STEP, 0), VALID_STEP, 1)[:h, :w]
-    return {
-        "image": {"width": w, "height": h},
-        "method": res.method, "refined": res.refined, "distortion_model": res.model,
-        "distortion_choice": res.distortion_model,
-        "K": res.K.tolist(), "D": res.D.tolist(), "std": res.std,
-        "rms_px": res.rms, "degeneracy_ratio": res.degeneracy_ratio, "warnings": res.warnings,
-        "views": [{"name": v.name, "used": v.used, "reason": v.reason, "rms_px": v.rms, "edge_offset_px": v.edge_offset,
-                   "corners_rejected_by_detector": v.unmeasured_corners, "outliers_rejected": {
-                       "edge_points": v.rejected_edges, "corners": v.rejected_corners}}
-                  for v in res.views],
-        "coverage": {"observed_fraction": float(d.field.mean()),
-                     "observed_field": "union over the used views of the convex hull of their feature points",
-                     "views_per_region": {"grid": list(d.regional.grid), "count": d.views_per_region.tolist()},
-                     "view_hulls": [np.round(x, 2).tolist() for x in d.hulls]},
-        "residuals": {
-            "convention": "observed minus predicted; edge residuals along the contour's outward normal",
-            "per_view_rms_px": [float(np.sqrt(np.mean(r * r))) if len(r) else float("nan")
-                                for r in res.edge_residuals],
-            "per_view_vector_rms_px": [round(float(x), 5) if np.isfinite(x) else None for x in d.view_rms],
-            "worst_views": [d.used_names[k] for k in worst_views(d) if k < len(d.used_names)],
-            "per_circle_rms_px": per_circle_rms(res),
-            "max_abs_px": float(max((np.max(np.abs(r)) for r in res.edge_residuals if len(r)), default=0.0)),
-            "kappa": {"edges": float(d.samples.kappa[~d.samples.is_corner][0]) if (~d.samples.is_corner).any()
-                      else 1.0, "corners": float(d.samples.kappa[d.samples.is_corner][0])
-                      if d.samples.is_corner.any() else 1.0},
-            "regional": d.regional.as_json(),
-            "radial": {"ring_edges_px": np.round(rad.edges_px, 2).tolist(),
-                       "mean_px": [round(float(m), 5) if ok else None for m, ok in zip(rad.mean, ring_ok, strict=True)],
-                       "stderr_px": [round(float(x), 5) if ok else None for x, ok in zip(rad.stderr, ring_ok,
-                                                                                        strict=True)],
-                       "count": rad.count.tolist(), "about": "principal point"},
-            "histogram": _histogram(d),
-            "model_bias": d.bias.as_json()},
-        "distortion_field": {"over": f"observed field + {FIELD_MARGIN:.0f} px", "step_px": DISTORTION_STEP,
-                             "max_px": float(mag.max()), "mean_px": float(mag.mean()),
-                             "points": np.round(np.hstack([d.dist_uv, d.dist_disp]), 3).tolist()},
-        "lens_model": {"valid_fraction_of_image": float(d.valid_grid.mean()),
-                       "observed_field_inside_valid": float(valid_px[d.field].mean()) if d.field.any() else None,
-                       "max_angle_deg": float(np.degrees(res.camera().lens.max_angle(res.D))),
-                       "valid": "the model is invertible, projects back within 0.05 px and is monotonic in the "
-                                "radius"},
-        "uncertainty": {"projection": res.projection_summary(),
-                        "projection_over": "observed field, worst-direction sigma (mrcal's projection uncertainty)",
-                        "std_model": res.std_model},
-        "target_shape": {"estimated": {n: res.shape[n] for n in res.shape_std}, "std": res.shape_std,
-                         "change_against_flat_sheet": res.shape_effect} if res.shape else None,
-    }
 
 
 # -- drawing -----------------------------------------------------------------------------
@@ -390,73 +236,16 @@ def panel_distortion(ax: Any, fig: Any, d: ReportData) -> None:
 
 def panel_projection(ax: Any, fig: Any, d: ReportData) -> None:
     res = d.res
-    pu = res.projection
+    pu = d.assessment.projection
     if pu is not None:
         sig = pu.sigma.reshape(pu.grid_shape)
         im = ax.imshow(sig, extent=(0, res.width, res.height, 0), cmap="magma",
                        vmax=float(np.nanpercentile(sig, 95)) if np.isfinite(sig).any() else None)
         fig.colorbar(im, ax=ax, label="projection sigma (px)", fraction=0.035)
-        ax.set_title(res.projection_line().replace(" in the observed", "\nin the observed"), fontsize=9)
+        ax.set_title(projection_line(d.assessment).replace(" in the observed", "\nin the observed"), fontsize=9)
     else:
         ax.set_title("projection uncertainty: not available (no refinement)", fontsize=9)
     _frame(ax, d, colour="c")
-
-
-def summary_lines(d: ReportData, width: int = 88) -> list[str]:
-    """The summary page's text: parameters, views, uncertainty, the verdict, every warning."""
-    res = d.res
-    names = ["fx", "fy", "cx", "cy", *res.camera().lens.coefficients]
-    vals = [res.K[0, 0], res.K[1, 1], res.K[0, 2], res.K[1, 2], *res.D]
-    lines = [f"{res.width}x{res.height}, {res.model}; method {res.method}{' + refinement' if res.refined else ''}; "
-             f"{res.n_used}/{len(res.views)} views used",
-             f"{'edge' if any(len(p) for p in res.edge_points) else 'corner'} RMS {res.rms:.4f} px; "
-             f"degeneracy ratio {res.degeneracy_ratio:.3f}",
-             res.projection_line(),
-             f"observed field: {100 * d.field.mean():.0f} % of the image", ""]
-    lines += [f"{n:>3} = {v:12.5f}  +- {res.std.get(n, float('nan')):.5f}" for n, v in zip(names, vals, strict=True)]
-    lines.append("")
-    b = d.bias
-    if b.detected:
-        lines += textwrap.wrap("MODEL BIAS: " + b.hint, width)
-    else:
-        lines += textwrap.wrap(f"model fits: no residual pattern beyond the noise (largest regional mean "
-                               f"{b.max_regional_px:.3f} px; floors {REGIONAL_FLOOR_PX} px regional, "
-                               f"{RADIAL_FLOOR_PX} px radial)", width)
-    lines.append("")
-    trimmed = [v for v in res.views if v.used and v.rejections()]
-    if trimmed:
-        lines.append(f"observations left out ({len(trimmed)} views):")
-        lines += [f"  {v.name}: {v.rejections()}"[:width] for v in trimmed[:8]]
-        lines.append("")
-    lines += textwrap.wrap(f"standard deviations: {res.std_model}", width)
-    lines.append("")
-    rejected = [v for v in res.views if not v.used]
-    if rejected:
-        lines.append(f"rejected views ({len(rejected)}):")
-        lines += [f"  {v.name}: {v.reason}"[:width] for v in rejected[:12]]
-        lines.append("")
-    others = [x for x in res.warnings if x != b.hint]  # the verdict is said above
-    lines += ["warnings:" if others else "no other warnings"]
-    for x in others:
-        lines += textwrap.wrap(x, width, initial_indent="- ", subsequent_indent="  ")
-    return lines
-
-
-def hand_eye_numbers(he: Any) -> dict[str, Any]:
-    """``report.json`` -> ``hand_eye``: X (camera in the parent frame), its sigma and the arm-accuracy
-    share of it, the robot error the data imply, and each view's chain disagreement."""
-    X = he.hand_eye
-    return {"mode": he.mode, "parent_frame_role": he.parent_frame_role,
-            "translation_m": X.translation.tolist(), "rotation_xyzw": X.quat.tolist(),
-            "translation_std_mm": np.asarray(he.translation_std_mm).tolist(),
-            "rotation_std_deg": np.asarray(he.rotation_std_deg).tolist(),
-            "arm_accuracy": {"mm": he.arm_accuracy_mm, "length_m": he.arm_accuracy_length,
-                             "translation_share_mm": np.asarray(he.arm_share_mm).tolist(),
-                             "rotation_share_deg": np.asarray(he.arm_share_deg).tolist()},
-            "robot_error_mm": he.robot_error_mm, "robot_error_deg": he.robot_error_deg,
-            "views_used": he.views_used, "rms_px": he.rms_px,
-            "per_view": [{k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in pv.items()}
-                         for pv in he.per_view]}
 
 
 def panel_hand_eye(ax: Any, he: Any) -> None:
@@ -503,7 +292,7 @@ class ReportFiles:
     model_bias: ModelBias
 
 
-def write_report(res: CalibrationResult, dets: list[Detection], out_dir: str | Path,
+def write_report(a: Assessment, dets: list[Detection], out_dir: str | Path,
                  images: ImageSource | None = None, page_images: bool = False, hand_eye: Any = None
                  ) -> ReportFiles:
     """Write ``report.pdf`` (:data:`PAGES` pages, one more with ``hand_eye``, a
@@ -518,7 +307,7 @@ def write_report(res: CalibrationResult, dets: list[Detection], out_dir: str | P
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    d = report_data(res, dets)
+    d = report_data(a, dets)
     numbers = report_numbers(d)
     if hand_eye is not None:
         numbers["hand_eye"] = hand_eye_numbers(hand_eye)
@@ -566,7 +355,7 @@ def write_report(res: CalibrationResult, dets: list[Detection], out_dir: str | P
             save(fig, pdf)
         if hand_eye is not None:
             fig, ax = plt.subplots(1, 2, figsize=(16, 8), gridspec_kw={"width_ratios": [1.1, 1]})
-            lines = [w for line in hand_eye.summary().splitlines()
+            lines = [w for line in hand_eye_summary(hand_eye).splitlines()
                      for w in textwrap.wrap(line, 110, subsequent_indent="      ") or [""]]
             _text(ax[0], ["hand-eye calibration", "", *lines], fontsize=7)
             panel_hand_eye(ax[1], hand_eye)

@@ -5,24 +5,35 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from geometry_msgs.msg import TransformStamped
 from sensor_msgs.msg import CameraInfo, CompressedImage, Image
+from std_msgs.msg import Header
 
-from ..calibrate.pipeline import CalibrationResult
-from ..geometry.camera import rectified_projection
+from ..geometry.transform import Transform
+from ..io.camera_yaml import CameraInfoData
 from ..io.image_msgs import grey_to_image_fields
 
 
-def camera_info_msg(res: CalibrationResult, camera_name: str, header: Any) -> CameraInfo:
-    """Monocular CameraInfo: K, D and ``distortion_model`` of the result's lens model
-    (plumb_bob, rational_polynomial, equidistant), R = identity, P from
-    :func:`rectified_projection` ([K | 0] for pinhole models)."""
-    del camera_name  # CameraInfo has no name field; it goes to the YAML
-    msg = CameraInfo(header=header, height=int(res.height), width=int(res.width), distortion_model=res.model)
-    msg.d = [float(v) for v in res.D]
-    msg.k = [float(v) for v in res.K.ravel()]
-    msg.r = [float(v) for v in np.eye(3).ravel()]
-    msg.p = [float(v) for v in rectified_projection(res.camera()).ravel()]
+def camera_info_msg(info: CameraInfoData, header: Any) -> CameraInfo:
+    """The CameraInfo message of a calibration's CameraInfo data (:func:`~..workflows.outputs.
+    camera_info_data`: K, D and ``distortion_model`` of its lens model, R, and P the rectified
+    projection, [K | 0] for pinhole models)."""
+    msg = CameraInfo(header=header, height=int(info.height), width=int(info.width),
+                     distortion_model=info.distortion_model)
+    msg.d = [float(v) for v in np.ravel(info.D)]
+    msg.k = [float(v) for v in np.ravel(info.K)]
+    msg.r = [float(v) for v in np.ravel(info.R)]
+    msg.p = [float(v) for v in np.ravel(info.projection)]
     return msg
+
+
+def transform_msg(X: Transform, parent: str, child: str, stamp: Any) -> TransformStamped:
+    """geometry_msgs/TransformStamped of X (``child``'s points into ``parent``)."""
+    tf = TransformStamped(header=Header(stamp=stamp, frame_id=parent), child_frame_id=child)
+    tr, r = tf.transform.translation, tf.transform.rotation
+    tr.x, tr.y, tr.z = (float(v) for v in X.translation)
+    r.x, r.y, r.z, r.w = (float(v) for v in X.quat)
+    return tf
 
 
 def image_msg(img: np.ndarray, header: Any) -> Image:

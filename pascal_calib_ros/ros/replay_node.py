@@ -83,67 +83,11 @@ class ReplayError(PascalCalibError):
 class ReplayNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("image_replay", **kwargs)
-        for name, default, desc in PARAMS:
-            d = ParameterDescriptor(description=desc, read_only=True)
-            if name in ("rate", "start_delay", "pose_lead"):
-                d.floating_point_range = [FloatingPointRange(from_value=0.0, to_value=1000.0, step=0.0)]
-            if name == "ack_timeout":
-                d.floating_point_range = [FloatingPointRange(from_value=0.1, to_value=3600.0, step=0.0)]
-            self.declare_parameter(name, default, d)
-        self.source = str(self.p("source"))
-        if not self.source:
-            raise ReplayError("parameter 'source' is empty: give a folder, a glob or a bag")
-        if self.p("qos") not in ("reliable", "best_effort"):
-            raise ReplayError(f"qos must be reliable or best_effort, got {self.p('qos')!r}")
-        if self.p("transport") not in ("raw", "compressed"):
-            raise ReplayError(f"transport must be raw or compressed, got {self.p('transport')!r}")
+        self._declare()
         self.mode = str(self.p("mode"))
-        if self.mode not in ("lockstep", "timed"):
-            raise ReplayError(f"mode must be lockstep or timed, got {self.mode!r}")
-        self.is_bag = self._looks_like_bag(self.source)
-        self.files: list[Path] = []
-        if not self.is_bag:
-            self.files = self._image_files(self.source)
-            if self.mode == "timed" and float(self.p("rate")) <= 0:
-                raise ReplayError("rate 0 (recorded timing) needs a bag; set rate > 0 for image files")
-            compressed = self.p("transport") == "compressed"
-            what = f"{len(self.files)} image file(s) from {self.source}"
-        else:
-            # open early: a missing or corrupt bag fails at start
-            first = next((x for x in self._bag_items() if isinstance(x, BagImage)), None)
-            if first is None:
-                raise ReplayError(f"bag {self.source} has no image messages")
-            compressed = first.msgtype == COMPRESSED_TYPE
-            what = f"bag {self.source}" + (f" ({self.p('bag_topic')})" if self.p("bag_topic") else "")
-        self.pose_topic = str(self.p("pose_topic"))
-        self.pub_pose: Any = None
-        if self.pose_topic:
-            if not self.is_bag:
-                raise ReplayError("pose_topic needs a bag as source (image folders carry no robot poses)")
-            pose_type = pose_topics(self._bag_path()).get(self.pose_topic)
-            if pose_type is None:
-                list(read_session(self._bag_path(), str(self.p("bag_topic")), self.pose_topic))  # raises the reason
-                raise ReplayError(f"bag {self.source} has no pose topic {self.pose_topic!r}")
-            from geometry_msgs.msg import PoseStamped, TransformStamped
-
-            self.pose_msg_type = PoseStamped if pose_type == POSE_TYPE else TransformStamped
-            pose_qos = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
-            self.pub_pose = self.create_publisher(self.pose_msg_type, self.pose_topic, pose_qos)
-            what += f" with robot poses {self.pose_topic} ({pose_type})"
-        self.poses_published = 0
-        qos = QoSProfile(depth=5, history=HistoryPolicy.KEEP_LAST,
-                         reliability=ReliabilityPolicy.RELIABLE if self.p("qos") == "reliable"
-                         else ReliabilityPolicy.BEST_EFFORT)
-        topic, warning = output_topic(str(self.p("topic")), compressed)
-        if warning:
-            self.get_logger().warn(warning)
-        self.pub_raw: Any = None
-        self.pub_compressed: Any = None
-        if compressed:
-            self.pub_compressed = self.create_publisher(CompressedImage, topic, qos)
-        else:
-            self.pub_raw = self.create_publisher(Image, topic, qos)
-        self.pub = self.pub_compressed if compressed else self.pub_raw
+        compressed, what = self._open_source()
+        what += self._pose_publisher()
+        self.pub = self._image_publisher(compressed)
         self.published = 0
         self.acknowledged = 0
         self.failed = False  # lock-step gave up: main() exits with 1
@@ -168,6 +112,75 @@ class ReplayNode(Node):
                                    "ack_timeout; use qos:=reliable")
         self._thread = threading.Thread(target=self._run, name="replay", daemon=True)
         self._thread.start()
+
+    def _declare(self) -> None:
+        """Declare the parameters (read only) and refuse values that cannot work."""
+        for name, default, desc in PARAMS:
+            d = ParameterDescriptor(description=desc, read_only=True)
+            if name in ("rate", "start_delay", "pose_lead"):
+                d.floating_point_range = [FloatingPointRange(from_value=0.0, to_value=1000.0, step=0.0)]
+            if name == "ack_timeout":
+                d.floating_point_range = [FloatingPointRange(from_value=0.1, to_value=3600.0, step=0.0)]
+            self.declare_parameter(name, default, d)
+        self.source = str(self.p("source"))
+        if not self.source:
+            raise ReplayError("parameter 'source' is empty: give a folder, a glob or a bag")
+        if self.p("qos") not in ("reliable", "best_effort"):
+            raise ReplayError(f"qos must be reliable or best_effort, got {self.p('qos')!r}")
+        if self.p("transport") not in ("raw", "compressed"):
+            raise ReplayError(f"transport must be raw or compressed, got {self.p('transport')!r}")
+        if self.p("mode") not in ("lockstep", "timed"):
+            raise ReplayError(f"mode must be lockstep or timed, got {self.p('mode')!r}")
+
+    def _open_source(self) -> tuple[bool, str]:
+        """(compressed frames, what is replayed); a missing or corrupt source fails here, at start."""
+        self.is_bag = self._looks_like_bag(self.source)
+        self.files: list[Path] = []
+        if not self.is_bag:
+            self.files = self._image_files(self.source)
+            if self.mode == "timed" and float(self.p("rate")) <= 0:
+                raise ReplayError("rate 0 (recorded timing) needs a bag; set rate > 0 for image files")
+            return self.p("transport") == "compressed", f"{len(self.files)} image file(s) from {self.source}"
+        first = next((x for x in self._bag_items() if isinstance(x, BagImage)), None)
+        if first is None:
+            raise ReplayError(f"bag {self.source} has no image messages")
+        return (first.msgtype == COMPRESSED_TYPE,
+                f"bag {self.source}" + (f" ({self.p('bag_topic')})" if self.p("bag_topic") else ""))
+
+    def _pose_publisher(self) -> str:
+        """The robot pose publisher of a bag with ``pose_topic``; what it adds to the log line."""
+        self.pose_topic = str(self.p("pose_topic"))
+        self.pub_pose: Any = None
+        self.poses_published = 0
+        if not self.pose_topic:
+            return ""
+        if not self.is_bag:
+            raise ReplayError("pose_topic needs a bag as source (image folders carry no robot poses)")
+        pose_type = pose_topics(self._bag_path()).get(self.pose_topic)
+        if pose_type is None:
+            list(read_session(self._bag_path(), str(self.p("bag_topic")), self.pose_topic))  # raises the reason
+            raise ReplayError(f"bag {self.source} has no pose topic {self.pose_topic!r}")
+        from geometry_msgs.msg import PoseStamped, TransformStamped
+
+        self.pose_msg_type = PoseStamped if pose_type == POSE_TYPE else TransformStamped
+        pose_qos = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
+        self.pub_pose = self.create_publisher(self.pose_msg_type, self.pose_topic, pose_qos)
+        return f" with robot poses {self.pose_topic} ({pose_type})"
+
+    def _image_publisher(self, compressed: bool) -> Any:
+        qos = QoSProfile(depth=5, history=HistoryPolicy.KEEP_LAST,
+                         reliability=ReliabilityPolicy.RELIABLE if self.p("qos") == "reliable"
+                         else ReliabilityPolicy.BEST_EFFORT)
+        topic, warning = output_topic(str(self.p("topic")), compressed)
+        if warning:
+            self.get_logger().warn(warning)
+        self.pub_raw: Any = None
+        self.pub_compressed: Any = None
+        if compressed:
+            self.pub_compressed = self.create_publisher(CompressedImage, topic, qos)
+        else:
+            self.pub_raw = self.create_publisher(Image, topic, qos)
+        return self.pub_compressed if compressed else self.pub_raw
 
     def p(self, name: str) -> Any:
         return self.get_parameter(name).value

@@ -334,27 +334,3 @@ def stored_message(index: int, det: Detection, pose: Transform | None) -> str:
     if pose is not None:
         msg += ", robot tool at [" + ", ".join(f"{v:.4f}" for v in pose.translation) + "] m"
     return msg
-
-
-# -- hand-eye results the node may publish --------------------------------------------------------
-
-MAX_HAND_EYE_STD_MM = 5.0  # a hand-eye transform less certain than this is not published
-MAX_HAND_EYE_STD_DEG = 0.5
-
-
-def hand_eye_doubts(result: object) -> list[str]:
-    """Why a hand-eye result (``HandEyeResult``) must not be published; empty if it may."""
-    problems = []
-    X = getattr(result, "hand_eye", None)
-    t_std = np.asarray(getattr(result, "translation_std_mm", [np.nan] * 3), float)
-    r_std = np.asarray(getattr(result, "rotation_std_deg", [np.nan] * 3), float)
-    if X is None or not (np.all(np.isfinite(X.translation)) and np.all(np.isfinite(X.quat))):
-        problems.append("the transform is not finite")
-    if not (np.all(np.isfinite(t_std)) and np.all(np.isfinite(r_std))):
-        problems.append("its uncertainty is unknown (the robot motions do not determine it)")
-    else:
-        if t_std.max() > MAX_HAND_EYE_STD_MM:
-            problems.append(f"translation std up to {t_std.max():.2f} mm (> {MAX_HAND_EYE_STD_MM:g} mm)")
-        if r_std.max() > MAX_HAND_EYE_STD_DEG:
-            problems.append(f"rotation std up to {r_std.max():.3f} deg (> {MAX_HAND_EYE_STD_DEG:g} deg)")
-    return problems

@@ -63,25 +63,25 @@ class ViewCollector:
         """Store the view if usable and new enough (``force``: whatever it resembles) with its
         robot pose; returns (accepted, reason)."""
         if not det.ok:
-            return self._reject(det.reason)
+            return self.reject(det.reason)
         if self.views and (det.width, det.height) != (self.views[0].width, self.views[0].height):
-            return self._reject(f"image size {det.width}x{det.height} differs from the session's "
+            return self.reject(f"image size {det.width}x{det.height} differs from the session's "
                                 f"{self.views[0].width}x{self.views[0].height}")
         p = view_parameters(det)
         if p is None:
-            return self._reject("no circle to place the view")
+            return self.reject("no circle to place the view")
         if self.params and not force:
             d = min(float(np.sum(np.abs(p - q))) for q in self.params)
             if d < self.min_distance:
-                return self._reject("too similar to a stored view (move or tilt the target)")
+                return self.reject("too similar to a stored view (move or tilt the target)")
         if len(self.views) >= self.max_views:
-            return self._reject(f"view store full ({self.max_views} views); calibrate or reset")
+            return self.reject(f"view store full ({self.max_views} views); calibrate or reset")
         self.views.append(det)
         self.params.append(p)
         self.robot_poses.append(robot_pose)
         return True, "accepted"
 
-    def _reject(self, reason: str) -> tuple[bool, str]:
+    def reject(self, reason: str) -> tuple[bool, str]:
         key = reason.split("(")[0].strip()  # group by kind, without the per-frame figures
         self.rejected[key] += 1
         self.last_rejection = reason

@@ -113,52 +113,33 @@ def bar_rects(width: int, height: int) -> dict[str, tuple[int, int, int, int]]:
     return rects
 
 
-def draw_live_overlay(img: np.ndarray, det: Detection | None, footprints: Sequence[np.ndarray],
-                      coverage: Mapping[str, float], views: int, min_views: int, ready: bool,
-                      verdict: str | None = None, verdict_ok: bool | None = None) -> np.ndarray:
-    """The ``~/detections`` picture (module docstring): a new BGR uint8 image of the frame's height
-    and its width plus :func:`panel_width`.
-
-    ``img``: the grey frame (uint8 or uint16; a BGR frame is accepted too); ``det``: the frame's
-    detection (None: none drawn); ``footprints``: the stored views' outlines, (K, 2) pixel
-    polygons; ``coverage``: axis -> fraction in [0, 1]; ``views`` stored of ``min_views`` needed;
-    ``ready``: the collector's verdict. ``verdict``: the frame's line of text (default: ``ok`` or
-    the detection's rejection reason), drawn green if ``verdict_ok`` (default: the detection is
-    usable), else red.
-    """
-    frame = _to_grey8(np.asarray(img))
-    h, w = frame.shape[:2]
-    u = _unit(h)
-    thick = max(1, round(u))
-    font_thick = max(1, round(1.6 * u))
-    pw = panel_width(h)
-    # frame and panel in one new image (cv2 is several times faster than numpy at filling BGR)
-    if frame.ndim == 2:
-        out = cv2.cvtColor(cv2.copyMakeBorder(frame, 0, 0, 0, pw, cv2.BORDER_CONSTANT, value=PANEL_GREY),
-                           cv2.COLOR_GRAY2BGR)
-    else:
-        out = cv2.copyMakeBorder(frame[:, :, :3], 0, 0, 0, pw, cv2.BORDER_CONSTANT, value=(PANEL_GREY,) * 3)
-    vis = out[:, :w]  # a view: drawing on it draws on ``out``
-
-    # footprints of the stored views: tinted inside (one blend over their bounding box), outlined
+def _draw_footprints(vis: np.ndarray, footprints: Sequence[np.ndarray], thick: int) -> None:
+    """The stored views' footprints: tinted inside (one blend over their bounding box), outlined."""
+    h, w = vis.shape[:2]
     polys = [np.round(np.asarray(f, float).reshape(-1, 2)).astype(np.int32) for f in footprints if len(f) >= 3]
-    if polys:
-        pts = np.concatenate(polys)
-        bx0, by0 = np.clip(pts.min(0), 0, [w - 1, h - 1])
-        bx1, by1 = np.clip(pts.max(0) + 1, 1, [w, h])
-        if bx1 > bx0 and by1 > by0:
-            mask = np.zeros((by1 - by0, bx1 - bx0), np.uint8)
-            shift = np.array([bx0, by0], np.int32)
-            for poly in polys:  # one by one: fillPoly would leave the overlaps of several out (even-odd)
-                cv2.fillPoly(mask, [(poly - shift).reshape(-1, 1, 2)], 255)
-            roi = vis[by0:by1, bx0:bx1]
-            tint = np.empty_like(roi)
-            cv2.rectangle(tint, (0, 0), (tint.shape[1], tint.shape[0]), FOOTPRINT_BGR, -1)
-            blended = cv2.addWeighted(roi, 1.0 - FOOTPRINT_ALPHA, tint, FOOTPRINT_ALPHA, 0.0)
-            cv2.copyTo(blended, mask, roi)
-        cv2.polylines(vis, [poly.reshape(-1, 1, 2) for poly in polys], True, FOOTPRINT_BGR, thick)
+    if not polys:
+        return
+    pts = np.concatenate(polys)
+    bx0, by0 = np.clip(pts.min(0), 0, [w - 1, h - 1])
+    bx1, by1 = np.clip(pts.max(0) + 1, 1, [w, h])
+    if bx1 > bx0 and by1 > by0:
+        mask = np.zeros((by1 - by0, bx1 - bx0), np.uint8)
+        shift = np.array([bx0, by0], np.int32)
+        for poly in polys:  # one by one: fillPoly would leave the overlaps of several out (even-odd)
+            cv2.fillPoly(mask, [(poly - shift).reshape(-1, 1, 2)], 255)
+        roi = vis[by0:by1, bx0:bx1]
+        tint = np.empty_like(roi)
+        cv2.rectangle(tint, (0, 0), (tint.shape[1], tint.shape[0]), FOOTPRINT_BGR, -1)
+        blended = cv2.addWeighted(roi, 1.0 - FOOTPRINT_ALPHA, tint, FOOTPRINT_ALPHA, 0.0)
+        cv2.copyTo(blended, mask, roi)
+    cv2.polylines(vis, [poly.reshape(-1, 1, 2) for poly in polys], True, FOOTPRINT_BGR, thick)
 
-    # the current detection
+
+def _draw_detection(vis: np.ndarray, det: Detection | None, verdict: str | None, verdict_ok: bool | None,
+                    u: float) -> None:
+    """The frame's detection (ellipses, corners) and its line of text."""
+    w = vis.shape[1]
+    thick, font_thick = max(1, round(u)), max(1, round(1.6 * u))
     ok = det is not None and det.ok
     if det is not None:
         colour = DETECTED_BGR if det.ok else REJECTED_BGR
@@ -177,7 +158,12 @@ def draw_live_overlay(img: np.ndarray, det: Detection | None, footprints: Sequen
     _text(vis, verdict, (round(10 * u), round(28 * u)), 0.6 * u, DETECTED_BGR if good else REJECTED_BGR,
           font_thick, background=(0, 0, 0))
 
-    # the panel: coverage bars, view count, state
+
+def _draw_panel(out: np.ndarray, w: int, coverage: Mapping[str, float], views: int, min_views: int, ready: bool,
+                u: float) -> None:
+    """The panel right of the frame (``w`` its width): coverage bars, view count, state."""
+    h = out.shape[0]
+    thick, font_thick = max(1, round(u)), max(1, round(1.6 * u))
     small = 0.5 * u
     for axis, (x0, y0, x1, y1) in bar_rects(w, h).items():
         p = float(np.clip(coverage.get(axis, 0.0), 0.0, 1.0))
@@ -204,4 +190,33 @@ def draw_live_overlay(img: np.ndarray, det: Detection | None, footprints: Sequen
         _text(out, "cover more:", (x0, y), 0.6 * u, WAIT_BGR, font_thick)
         y += round(26 * u)
         _text(out, " ".join(short) or "-", (x0, y), small, WAIT_BGR, font_thick)
+
+
+def draw_live_overlay(img: np.ndarray, det: Detection | None, footprints: Sequence[np.ndarray],
+                      coverage: Mapping[str, float], views: int, min_views: int, ready: bool,
+                      verdict: str | None = None, verdict_ok: bool | None = None) -> np.ndarray:
+    """The ``~/detections`` picture (module docstring): a new BGR uint8 image of the frame's height
+    and its width plus :func:`panel_width`.
+
+    ``img``: the grey frame (uint8 or uint16; a BGR frame is accepted too); ``det``: the frame's
+    detection (None: none drawn); ``footprints``: the stored views' outlines, (K, 2) pixel
+    polygons; ``coverage``: axis -> fraction in [0, 1]; ``views`` stored of ``min_views`` needed;
+    ``ready``: the collector's verdict. ``verdict``: the frame's line of text (default: ``ok`` or
+    the detection's rejection reason), drawn green if ``verdict_ok`` (default: the detection is
+    usable), else red.
+    """
+    frame = _to_grey8(np.asarray(img))
+    h, w = frame.shape[:2]
+    u = _unit(h)
+    pw = panel_width(h)
+    # frame and panel in one new image (cv2 is several times faster than numpy at filling BGR)
+    if frame.ndim == 2:
+        out = cv2.cvtColor(cv2.copyMakeBorder(frame, 0, 0, 0, pw, cv2.BORDER_CONSTANT, value=PANEL_GREY),
+                           cv2.COLOR_GRAY2BGR)
+    else:
+        out = cv2.copyMakeBorder(frame[:, :, :3], 0, 0, 0, pw, cv2.BORDER_CONSTANT, value=(PANEL_GREY,) * 3)
+    vis = out[:, :w]  # a view: drawing on it draws on ``out``
+    _draw_footprints(vis, footprints, max(1, round(u)))
+    _draw_detection(vis, det, verdict, verdict_ok, u)
+    _draw_panel(out, w, coverage, views, min_views, ready, u)
     return out

@@ -16,7 +16,9 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ..calibrate.pipeline import CalibrationOptions, calibrate
+from ..analysis.assessment import assess
+from ..calibrate.options import CalibrationOptions
+from ..calibrate.pipeline import calibrate
 from ..detect.target_detector import detect_target
 from ..geometry.camera import Camera
 from ..sim.render import BACKGROUND, Pose, SensorModel, apply_sensor, reflectance, render_view
@@ -154,12 +156,12 @@ def run_bench(quick: bool = False, print_table: bool = True) -> dict[str, list[d
     cal_rows: list[dict[str, Any]] = []
     for n in counts:
         sub = dets[:n]
-        t = _median_time(lambda sub=sub: calibrate(sub, target, CalibrationOptions()), 1 if quick else 3)
+        t = _median_time(lambda sub=sub: assess(calibrate(sub, target, CalibrationOptions())), 1 if quick else 3)
         cal_rows.append({"views": n, "seconds": t})
         if print_table:
             print(f"calibrate {n:3d} views (ring, refined, plumb_bob): {t:6.3f} s")
     gdets = [detect_target(v.image, grid, name=f"view_{k:02d}") for k, v in enumerate(gviews)]
-    t = _median_time(lambda: calibrate(gdets, grid, CalibrationOptions()), 1)
+    t = _median_time(lambda: assess(calibrate(gdets, grid, CalibrationOptions())), 1)
     cal_rows.append({"views": 20, "seconds": t, "target": "disc_grid_a4"})
     if print_table:
         print(f"calibrate  20 views of a 70-disc grid (plumb line + homography start, refined): {t:6.3f} s")
@@ -168,7 +170,7 @@ def run_bench(quick: bool = False, print_table: bool = True) -> dict[str, list[d
 
     from ..report.pages import write_report
 
-    gres = calibrate(gdets, grid, CalibrationOptions())
+    gres = assess(calibrate(gdets, grid, CalibrationOptions()))
     imgs = {d.name: v.image for d, v in zip(gdets, gviews, strict=True)}
     with tempfile.TemporaryDirectory() as tmp:
         write_report(gres, gdets, tmp, images=imgs.get)  # imports matplotlib once

@@ -25,8 +25,11 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ..calibrate.pipeline import CalibrationError, CalibrationOptions, calibrate
-from ..calibrate.refine import ViewData, refine
+from ..calibrate.observations import ViewData
+from ..calibrate.options import CalibrationOptions
+from ..calibrate.pipeline import calibrate
+from ..calibrate.refine import refine
+from ..calibrate.result import CalibrationError
 from ..detect.detection import Detection
 from ..detect.target_detector import detect_target
 from ..geometry.camera import rodrigues

@@ -32,7 +32,7 @@ import cv2
 import numpy as np
 
 from ..calibrate.handeye import calibrate_hand_eye
-from ..calibrate.pipeline import CalibrationError
+from ..calibrate.result import CalibrationError
 from ..detect.target_detector import detect_target
 from ..geometry.transform import Transform
 from ..sim.arm import ArmSpec, arm_poses, hand_eye_errors, render_arm_images

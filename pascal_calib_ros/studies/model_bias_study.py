@@ -15,8 +15,11 @@ from typing import Any
 
 import numpy as np
 
+from ..analysis.assessment import residual_samples_of
 from ..analysis.residual_stats import model_bias, radial, regional
-from ..calibrate.pipeline import CalibrationError, CalibrationOptions, calibrate
+from ..calibrate.options import CalibrationOptions
+from ..calibrate.pipeline import calibrate
+from ..calibrate.result import CalibrationError
 from ..detect.target_detector import detect_target
 from ..sim.render import render_view
 from ..sim.session import SessionSpec, session_views
@@ -67,7 +70,7 @@ def run_case(case: BiasCase) -> dict[str, Any]:
         res = calibrate(dets, target, CalibrationOptions(distortion=case.distortion))
     except CalibrationError as e:
         return {**row, "error": str(e)[:120]}
-    s = res.residual_samples()
+    s = residual_samples_of(res)
     reg = regional(s, res.width, res.height)
     rad = radial(s, (res.K[0, 2], res.K[1, 2]))
     mb = model_bias(reg, rad, res.width, res.height, res.model)

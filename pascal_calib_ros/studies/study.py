@@ -23,11 +23,13 @@ from typing import Any
 
 import numpy as np
 
-from ..calibrate.diagnostics import observed_field_mask
-from ..calibrate.pipeline import CalibrationError, CalibrationOptions, calibrate
+from ..calibrate.options import CalibrationOptions
+from ..calibrate.pipeline import calibrate
+from ..calibrate.result import CalibrationError
 from ..detect.detection import DetectionParams
 from ..detect.target_detector import detect_target
 from ..geometry.camera import Camera, calibration_errors
+from ..geometry.image_field import observed_field_mask
 from ..sim.render import features_in_image, render_view
 from ..sim.session import SessionSpec, render_session_views, session_views
 from ..targets import resolve_target
@@ -175,7 +177,7 @@ SHAPE_SCENARIOS = (
 def target_shape(out: Path, views: int, seed: int) -> list[dict[str, Any]]:
     """Ring grid, 1024x768, k1 = -0.43, 20 views, on sheets of known shape (render.SheetShape):
     the nominal flat model beside the estimated shape (refine.SHAPE_NAMES), errors against truth."""
-    from ..calibrate.refine import SHAPE_CHOICES
+    from ..calibrate.problem import SHAPE_CHOICES
 
     target = resolve_target("ring_grid_a4")
     rows: list[dict[str, Any]] = []

@@ -26,8 +26,10 @@ import numpy as np
 
 from ..analysis.compare import projection_difference
 from ..analysis.cross_validation import difference_share
-from ..calibrate.pipeline import CalibrationError, CalibrationOptions, CalibrationResult, calibrate
-from ..calibrate.uncertainty import rotation_displacements
+from ..analysis.uncertainty import rotation_displacements
+from ..calibrate.options import CalibrationOptions
+from ..calibrate.pipeline import calibrate
+from ..calibrate.result import CalibrationError, CalibrationResult
 from ..detect.detection import DetectionParams
 from ..detect.target_detector import detect_target
 from ..geometry.camera import Camera

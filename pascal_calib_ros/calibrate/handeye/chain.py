@@ -1,0 +1,156 @@
+"""The robot chain as a measurement: a :class:`~.problem.Problem` with six chain rows per view
+(:class:`RobotChain`, :class:`ChainProblem`), for the joint hand-eye refinement."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ...geometry.lens import PLUMB_BOB, LensModel
+from ..observations import ViewData
+from ..problem import Problem
+
+
+@dataclass
+class RobotChain:
+    """A robot chain as a *measurement* of every view's camera pose (calibrate/handeye.py).
+
+    Per view i the chain pose M_i (eye in hand: T_base_tool, the robot's pose; eye to hand:
+    T_tool_base, its inverse), the hand-eye transform X (camera -> tool, or camera -> base) and the
+    target's pose Y (target's local frame -> base, or -> tool) close the loop Y = M_i X C_i, with
+    C_i the view's target -> camera pose. The robot pose the images imply, G'_i, is compared with
+    the measured one G_i: delta_i = G_i^-1 G'_i (eye in hand: M_i^-1 Y C_i^-1 X^-1; eye to hand:
+    M_i X C_i Y^-1), six residuals per view, (rotation vector / sigma_rot, translation /
+    sigma_trans) times ``scale`` (pixels per sigma, so that they weigh like edge residuals).
+    Quadratic loss (a Gaussian arm), not the edges' robust one."""
+
+    chain: list[Any]  # geometry.transform.Transform M_i per view
+    eye_in_hand: bool
+    sigma_rot: float  # rad per axis
+    sigma_trans: float  # m per axis
+    scale: float = 1.0  # px per sigma
+
+
+class ChainProblem(Problem):
+    """:class:`Problem` with a robot chain: x = [free intrinsics, shape parameters, X (rvec, t),
+    Y (rvec, t), view 0 (6-dof pose, offset), ...]; rows = edge points, corners, then six chain
+    rows per view (:class:`RobotChain`). The chain rows' Jacobian is by central differences
+    (vectorised over the views: a handful of rotations per parameter)."""
+
+    N_CHAIN = 12
+
+    def __init__(self, views: list[ViewData], free_intrinsics: tuple[str, ...], use_offsets: bool,
+                 chain: RobotChain, loss_scale: float = 0.3, shape: tuple[str, ...] = (),
+                 shape_frame: tuple[float, float, float, float] | None = None, lens: LensModel = PLUMB_BOB):
+        super().__init__(views, 6, free_intrinsics, use_offsets, loss_scale, shape, shape_frame, lens)
+        if len(chain.chain) != self.nv:
+            raise ValueError(f"{len(chain.chain)} chain poses for {self.nv} views")
+        self.chain = chain
+        self.ng = self.n_base + self.N_CHAIN
+        self.n_robust = self.n_edge + 2 * self.n_corner
+        self.rows_of_view = [np.concatenate([r, self.n_robust + 6 * i + np.arange(6)])
+                             for i, r in enumerate(self.rows_of_view)]
+        self._RM = Rotation.concatenate([m.rotation for m in chain.chain]) if self.nv else None
+        self._tM = np.array([m.translation for m in chain.chain]).reshape(-1, 3)
+
+    def pack_chain(self, intr: np.ndarray, poses: list[np.ndarray], offsets: np.ndarray, xy: np.ndarray,
+                   shape: np.ndarray | None = None) -> np.ndarray:
+        """x from the intrinsics, the 6-dof poses, offsets and xy = [X rvec, X t, Y rvec, Y t]."""
+        base = self.pack(intr, poses, offsets, shape)
+        return np.concatenate([base[: self.n_base], np.asarray(xy, float), base[self.n_base:]])
+
+    def chain_params(self, x: np.ndarray) -> np.ndarray:
+        return x[self.n_base:self.n_base + self.N_CHAIN]
+
+    def chain_deltas(self, xy: np.ndarray, poses: np.ndarray, chain: list[Any] | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
+        """Per view the disagreement G_i^-1 G'_i as (rotation vectors (V, 3) rad, translations (V, 3) m);
+        ``chain``: other chain poses M_i than the problem's (a perturbed arm)."""
+        RX, tX = Rotation.from_rotvec(xy[0:3]), xy[3:6]
+        RY, tY = Rotation.from_rotvec(xy[6:9]), xy[9:12]
+        RC, tC = Rotation.from_rotvec(poses[:, :3]), poses[:, 3:6]
+        if chain is None:
+            RM, tM = self._RM, self._tM
+        else:
+            RM, tM = Rotation.concatenate([m.rotation for m in chain]), np.array([m.translation for m in chain])
+        assert RM is not None
+        if self.chain.eye_in_hand:  # M^-1 Y C^-1 X^-1
+            RMi = RM.inv()
+            R1, t1 = RMi * RY, RMi.apply(tY - tM)
+            RCi = RC.inv()
+            R2, t2 = R1 * RCi, t1 - (R1 * RCi).apply(tC)
+            RXi = RX.inv()
+            R3, t3 = R2 * RXi, t2 - (R2 * RXi).apply(tX)
+        else:  # M X C Y^-1
+            R1, t1 = RM * RX, RM.apply(tX) + tM
+            R2, t2 = R1 * RC, R1.apply(tC) + t1
+            RYi = RY.inv()
+            R3, t3 = R2 * RYi, t2 - (R2 * RYi).apply(tY)
+        return R3.as_rotvec().reshape(-1, 3), np.asarray(t3).reshape(-1, 3)
+
+    def chain_residuals(self, xy: np.ndarray, poses: np.ndarray, chain: list[Any] | None = None) -> np.ndarray:
+        """(V, 6) normalised chain residuals (rotation then translation), times ``scale``."""
+        rv, t = self.chain_deltas(xy, poses, chain)
+        c = self.chain
+        return np.concatenate([rv / c.sigma_rot, t / c.sigma_trans], 1) * c.scale
+
+    def evaluate(self, x: np.ndarray, intr0: np.ndarray, jac: bool = True
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        f, Jg, Jv = super().evaluate(x, intr0, jac)
+        _, _, poses, _ = self.unpack(x, intr0)
+        xy = self.chain_params(x)
+        fp = self.chain_residuals(xy, poses)
+        f = np.concatenate([f, fp.ravel()])
+        if not jac:
+            return f, Jg, Jv
+        Jgp, Jvp = self.chain_jacobian(xy, poses)
+        return f, np.concatenate([Jg, Jgp]), np.concatenate([Jv, Jvp])
+
+    def chain_jacobian(self, xy: np.ndarray, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The chain rows' Jacobian by central differences: (6V, ng) over the global parameters and
+        (6V, per_view) over the pose of each row's own view."""
+        h = 1e-6
+        nv = self.nv
+        Jgp = np.zeros((6 * nv, self.ng))
+        for k in range(self.N_CHAIN):
+            e = np.zeros(self.N_CHAIN)
+            e[k] = h
+            d = (self.chain_residuals(xy + e, poses) - self.chain_residuals(xy - e, poses)) / (2 * h)
+            Jgp[:, self.n_base + k] = d.ravel()
+        Jvp = np.zeros((nv, 6, self.per_view))
+        for k in range(6):
+            e = np.zeros(6)
+            e[k] = h
+            Jvp[:, :, k] = (self.chain_residuals(xy, poses + e) - self.chain_residuals(xy, poses - e)) / (2 * h)
+        return Jgp, Jvp.reshape(6 * nv, self.per_view)
+
+    def chain_dense_jacobian(self, xy: np.ndarray, poses: np.ndarray) -> np.ndarray:
+        """The chain rows' full Jacobian (6V, parameters)."""
+        Jgp, Jvp = self.chain_jacobian(xy, poses)
+        J = np.zeros((6 * self.nv, self.ng + self.per_view * self.nv))
+        J[:, : self.ng] = Jgp
+        for i in range(self.nv):
+            s = self.ng + i * self.per_view
+            J[6 * i:6 * i + 6, s:s + self.per_view] = Jvp[6 * i:6 * i + 6]
+        return J
+
+    def robust_weights(self, f: np.ndarray, loss_scale: float) -> np.ndarray:
+        w = np.ones(len(f))
+        w[: self.n_robust] = super().robust_weights(f[: self.n_robust], loss_scale)
+        return w
+
+    def robust_cost(self, f: np.ndarray, loss_scale: float) -> float:
+        return super().robust_cost(f[: self.n_robust], loss_scale) + 0.5 * float(np.sum(f[self.n_robust:] ** 2))
+
+    def loss_derivatives(self, f: np.ndarray, loss_scale: float) -> tuple[np.ndarray, np.ndarray]:
+        psi, dpsi = f.copy(), np.ones(len(f))
+        psi[: self.n_robust], dpsi[: self.n_robust] = super().loss_derivatives(f[: self.n_robust], loss_scale)
+        return psi, dpsi
+
+    def chain_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """Row indices of the chain's rotation rows and translation rows."""
+        base = self.n_robust + 6 * np.arange(self.nv)[:, None]
+        return (base + np.arange(3)).ravel(), (base + 3 + np.arange(3)).ravel()

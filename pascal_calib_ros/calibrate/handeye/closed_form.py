@@ -1,0 +1,183 @@
+"""Closed forms of hand-eye calibration and the checks of the robot's motions.
+
+The loop Y = M_i X C_i (module docstring of :mod:`.session`): Park & Martin, "Robot sensor
+calibration: solving AX = XB on the Euclidean group", IEEE Trans. Robotics and Automation 10(5),
+1994, over all view pairs; for an axisymmetric target (a single ring) linear least squares on its
+centre and normal per view. Motions that leave X undetermined (fewer than 3 poses, pure
+translations, a single rotation axis) are refused."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from ...geometry.transform import Transform
+from .options import (
+    MIN_AXIS_SPREAD_DEG,
+    MIN_MOTION_DEG,
+    MIN_VIEWS,
+    HandEyeError,
+)
+
+
+def park_martin(A: list[Transform], B: list[Transform]) -> Transform:
+    """X with A_k X = X B_k in the least-squares sense of Park & Martin (IEEE TRA 1994): the
+    rotation from the rotation vectors (R_X = (M^T M)^-1/2 M^T, M = sum beta alpha^T), then the
+    translation by linear least squares. Needs two motions with non-parallel rotation axes."""
+    if len(A) != len(B) or len(A) < 2:
+        raise HandEyeError("Park-Martin needs at least two motion pairs")
+    alpha = np.array([a.rotvec for a in A])
+    beta = np.array([b.rotvec for b in B])
+    M = beta.T @ alpha  # sum_k beta_k alpha_k^T
+    MtM = M.T @ M
+    w, V = np.linalg.eigh(MtM)
+    if w[0] <= 1e-12 * max(w[-1], 1e-300):
+        raise HandEyeError("the motions rotate about a single axis: hand-eye is undetermined; rotate the tool "
+                           "about at least two different axes between views")
+    RX = V @ np.diag(1 / np.sqrt(w)) @ V.T @ M.T
+    U, _, Vt = np.linalg.svd(RX)  # remove rounding
+    RX = U @ np.diag([1, 1, np.linalg.det(U @ Vt)]) @ Vt
+    C = np.concatenate([a.R - np.eye(3) for a in A])
+    d = np.concatenate([RX @ b.translation - a.translation for a, b in zip(A, B, strict=True)])
+    tX = np.linalg.lstsq(C, d, rcond=None)[0]
+    return Transform.from_rt(RX, tX)
+
+
+def chain_pose(robot_pose: Transform, mode: str) -> Transform:
+    """M_i of the loop Y = M_i X C_i: the robot pose (eye in hand) or its inverse (eye to hand)."""
+    return robot_pose if mode == "eye_in_hand" else robot_pose.inverse()
+
+
+def motion_pairs(M: list[Transform], C: list[Transform]) -> tuple[list[Transform], list[Transform]]:
+    """(A, B) over all view pairs i < j: A = M_j^-1 M_i, B = C_j C_i^-1 (A X = X B)."""
+    A, B = [], []
+    for i, j in itertools.combinations(range(len(M)), 2):
+        A.append(M[j].inverse() @ M[i])
+        B.append(C[j] @ C[i].inverse())
+    return A, B
+
+
+def target_from_chain(M: list[Transform], X: Transform, C: list[Transform]) -> Transform:
+    """Y as the mean of M_i X C_i (rotation mean, translation mean)."""
+    Ys = [m @ X @ c for m, c in zip(M, C, strict=True)]
+    rot = Rotation.concatenate([y.rotation for y in Ys]).mean()
+    return Transform(rot, np.mean([y.translation for y in Ys], 0))
+
+
+def hand_eye_closed_form(M: list[Transform], C: list[Transform]) -> tuple[Transform, Transform]:
+    """(X, Y) from chain poses and full camera poses: Park-Martin over all pairs, Y averaged."""
+    A, B = motion_pairs(M, C)
+    X = park_martin(A, B)
+    return X, target_from_chain(M, X, C)
+
+
+def ring_closed_form(M: list[Transform], centres: np.ndarray, normals: np.ndarray, length: float = 0.3
+                     ) -> tuple[Transform, Transform]:
+    """(X, Y) for an axisymmetric target seen as a centre c_i and a normal n_i (camera frame) per
+    view: linear least squares on p = R_Mi (R_X c_i + t_X) + t_Mi and d = R_Mi R_X n_i (p, d the
+    centre and normal in the fixed frame; R_X as 9 unknowns, then the nearest rotation), refined
+    by nonlinear least squares on the same loop. Y's rotation about the target's axis is set to
+    make the first view's rotation about its axis zero."""
+    n = len(M)
+    rows, rhs = [], []
+    for m, c, nv in zip(M, centres, normals, strict=True):
+        RM = m.R
+        a = np.zeros((3, 18))
+        a[:, 0:9] = -RM @ np.kron(np.eye(3), c[None, :])
+        a[:, 9:12] = -RM
+        a[:, 12:15] = np.eye(3)
+        rows.append(a)
+        rhs.append(m.translation)
+        b = np.zeros((3, 18))
+        b[:, 0:9] = -length * RM @ np.kron(np.eye(3), nv[None, :])
+        b[:, 15:18] = length * np.eye(3)
+        rows.append(b)
+        rhs.append(np.zeros(3))
+    z = np.linalg.lstsq(np.concatenate(rows), np.concatenate(rhs), rcond=None)[0]
+    U, _, Vt = np.linalg.svd(z[:9].reshape(3, 3))
+    RX = U @ np.diag([1, 1, np.linalg.det(U @ Vt)]) @ Vt
+    d0 = z[15:18] / max(np.linalg.norm(z[15:18]), 1e-12)
+    ez = np.array([0.0, 0.0, 1.0])
+
+    def unpack(p: np.ndarray) -> tuple[Transform, np.ndarray, np.ndarray]:
+        X = Transform.from_rotvec(p[:3], p[3:6])
+        th, ph = p[9], p[10]
+        return X, p[6:9], np.array([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
+
+    def res(p: np.ndarray) -> np.ndarray:
+        X, pc, d = unpack(p)
+        out = []
+        for k in range(n):
+            MX = M[k] @ X
+            out.append(MX.apply(centres[k]) - pc)
+            out.append(length * (MX.rotation.apply(normals[k]) - d))
+        return np.concatenate(out)
+
+    th0 = float(np.arccos(np.clip(d0[2], -1, 1)))
+    p0 = np.r_[Rotation.from_matrix(RX).as_rotvec(), z[9:12], z[12:15], th0, np.arctan2(d0[1], d0[0])]
+    sol = least_squares(res, p0, method="lm", x_scale="jac")
+    X, pc, d = unpack(sol.x)
+    # Y: origin at the centre, z along the normal, x from the first view's (arbitrary) x axis
+    x0 = (M[0] @ X).rotation.apply(np.cross(ez, d) if abs(d[2]) < 0.9 else np.array([1.0, 0.0, 0.0]))
+    x0 = x0 - d * (x0 @ d)
+    x0 /= np.linalg.norm(x0)
+    RY = np.column_stack([x0, np.cross(d, x0), d])
+    return X, Transform.from_rt(RY, pc)
+
+
+def check_robot_poses(poses: list[Transform], mode: str) -> None:
+    """Refuse motions that leave X undetermined: fewer than 3 poses, no rotation between the poses
+    (pure translations), or rotations about a single axis (the spread of the relative motions'
+    axes below :data:`MIN_AXIS_SPREAD_DEG`)."""
+    if len(poses) < MIN_VIEWS:
+        raise HandEyeError(f"{len(poses)} view(s) with a robot pose; hand-eye needs at least {MIN_VIEWS} "
+                           "(better 10-20, rotated about different axes)")
+    for k, p in enumerate(poses):
+        if not np.all(np.isfinite(p.matrix)):
+            raise HandEyeError(f"robot pose {k} is not finite")
+    M = [chain_pose(p, mode) for p in poses]
+    axes = []
+    for i, j in itertools.combinations(range(len(M)), 2):
+        rv = (M[j].inverse() @ M[i]).rotvec
+        ang = float(np.linalg.norm(rv))
+        if np.degrees(ang) >= MIN_MOTION_DEG:
+            axes.append(rv / ang)
+    if not axes:
+        raise HandEyeError(f"the robot poses differ by pure translations (no relative rotation above "
+                           f"{MIN_MOTION_DEG:g} deg): the hand-eye rotation is undetermined; rotate the tool about "
+                           "at least two different axes between views")
+    a = np.array(axes)
+    spread = float(np.max(np.linalg.norm(np.cross(a[:, None, :], a[None, :, :]), axis=2)))
+    if np.degrees(np.arcsin(min(spread, 1.0))) < MIN_AXIS_SPREAD_DEG:
+        raise HandEyeError(f"all robot motions rotate about a single axis (axes within {MIN_AXIS_SPREAD_DEG:g} deg "
+                           "of each other): the translation along it is undetermined; rotate the tool about at "
+                           "least two different axes between views")
+
+
+def chain_disagreement(M: list[Transform], X: Transform, Y: Transform, C: list[Transform], mode: str
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Per view (mm, deg) of G_i^-1 G'_i: the measured robot pose against the one the images imply."""
+    mm, deg = [], []
+    for m, c in zip(M, C, strict=True):
+        d = m.inverse() @ Y @ c.inverse() @ X.inverse() if mode == "eye_in_hand" else m @ X @ c @ Y.inverse()
+        mm.append(1000 * float(np.linalg.norm(d.translation)))
+        deg.append(d.angle_deg())
+    return np.array(mm), np.array(deg)
+
+
+def _complete_ring_poses(M: list[Transform], X: Transform, Y: Transform, C: list[Transform]) -> list[Transform]:
+    """Each view's rotation about the ring's axis from the chain: the predicted pose
+    X^-1 M^-1 Y turned minimally so that its z axis is the measured normal; the measured centre."""
+    out = []
+    for m, c in zip(M, C, strict=True):
+        P = X.inverse() @ m.inverse() @ Y
+        z_pred, z_meas = P.R[:, 2], c.R[:, 2]
+        axis = np.cross(z_pred, z_meas)
+        s = float(np.linalg.norm(axis))
+        turn = Rotation.from_rotvec(axis / s * np.arctan2(s, float(z_pred @ z_meas))) if s > 1e-12 \
+            else Rotation.identity()
+        out.append(Transform(turn * P.rotation, c.translation))
+    return out

@@ -1,0 +1,137 @@
+"""The closed-form start of a calibration: K (and D) and a pose per view, from the circular points,
+the grid homographies, or OpenCV's calibration of checkerboard corners."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..detect.detection import Detection
+from ..geometry.circular import CircularPointError
+from ..geometry.iac import DegenerateViewsError, IacSolution
+from ..geometry.lens import DISTORTION_CHOICES
+from ..targets import Target
+from .initial import (
+    grid_homography_init,
+    intrinsics_closed_form,
+    pose_from_circles,
+    pose_from_view,
+    pose_to_params,
+)
+from .observations import ViewData, observations
+from .options import CalibrationOptions
+from .plumbline import (
+    division_parameter,
+    equidistant_focal,
+    plumb_bob_from_division,
+    undistort_detections,
+    virtual_pinhole_detections,
+)
+from .problem import DISTORTION_MODELS
+from .result import CalibrationError, ViewReport
+from .zhang import calibrate_zhang
+
+
+@dataclass
+class ClosedFormStart:
+    """What the closed form gave: K and its degeneracy figures, the views it used (indices into
+    the session), per-view grid poses when it has them, the detections it ran on (drawn without
+    distortion where the lens needs it), the plumb-line division parameter."""
+
+    sol: Any
+    used: list[int]
+    grid_poses: dict[int, Any]
+    init_dets: list[Detection]
+    division: float
+    warnings: list[str]
+    D: np.ndarray | None = None  # the start's distortion when it has one (OpenCV's checkerboard calibration)
+
+
+def zhang_start(dets: list[Detection], usable: list[int], target: Target, opt: CalibrationOptions,
+                reports: list[ViewReport]) -> ClosedFormStart:
+    """K, D and a pose per view from OpenCV's calibration of the checkerboard corners (Zhang's
+    closed form and OpenCV's own refinement): the start of the checkerboard path."""
+    try:
+        z = calibrate_zhang([dets[k] for k in usable], target, opt.distortion, target.local_origin)
+    except DegenerateViewsError as exc:
+        raise CalibrationError(str(exc)) from None
+    used = [usable[k] for k in z.used]
+    for k in usable:
+        if k not in used:
+            reports[k].used, reports[k].reason = False, "zhang: fewer than 6 measured corners"
+    Ki = np.linalg.inv(z.K)
+    sol = IacSolution(z.K, Ki.T @ Ki, float("nan"))
+    return ClosedFormStart(sol, used, dict(zip(used, z.poses, strict=True)), dets, 0.0, [], z.D)
+
+
+def closed_form_start(dets: list[Detection], usable: list[int], target: Target, opt: CalibrationOptions,
+                      reports: list[ViewReport]) -> ClosedFormStart:
+    """K from the circular points (or grid homographies) of the usable views. Strong distortion
+    is taken out first: a fisheye's edges are drawn in the virtual pinhole camera of a generic
+    equidistant lens, a grid's rows are straightened by a division model (plumb line)."""
+    lens = DISTORTION_CHOICES[opt.distortion][0]
+    good = [dets[k] for k in usable]
+    lam = 0.0
+    init_dets = dets
+    if lens.wide:
+        init_dets = virtual_pinhole_detections(dets, equidistant_focal(good, target))
+    elif target.grids and opt.distortion != "none":
+        # grids are used with strongly distorting lenses: straighten the rows first (plumb line)
+        lam = division_parameter(good, target)
+        init_dets = undistort_detections(dets, lam)
+    good = [init_dets[k] for k in usable]
+    grid_poses: dict[int, Any] = {}
+    try:
+        if opt.method == "grid":
+            sol, poses = grid_homography_init(good, target, target.local_origin, opt.zero_skew)
+            used_local = [k for k, p in enumerate(poses) if p is not None]
+            failed = {k: "fewer than 6 grid elements" for k, p in enumerate(poses) if p is None}
+            grid_poses = {usable[k]: p for k, p in enumerate(poses) if p is not None}
+        else:
+            sol, used_local, failed = intrinsics_closed_form(good, target, opt.method, opt.zero_skew)
+    except DegenerateViewsError as exc:
+        raise CalibrationError(str(exc)) from None
+    for k_local, why in failed.items():
+        rep = reports[usable[k_local]]
+        rep.used, rep.reason = False, f"{opt.method}: {why}"
+    return ClosedFormStart(sol, [usable[k] for k in used_local], grid_poses, init_dets, lam,
+                           [sol.warning] if sol.warning else [])
+
+
+def _start_poses(dets: list[Detection], start: ClosedFormStart, target: Target, opt: CalibrationOptions,
+                 reports: list[ViewReport], origin: tuple[float, float], dof: int
+                 ) -> tuple[list[ViewData], list[np.ndarray], list[int]]:
+    """Observations and start pose of every view the closed form used."""
+    lens = DISTORTION_CHOICES[opt.distortion][0]
+    views, poses0, idx = [], [], []
+    for k in start.used:
+        try:
+            if k in start.grid_poses:
+                pose = start.grid_poses[k]
+            elif target.grids:
+                pose = pose_from_circles(start.init_dets[k], target, start.sol.K, origin)
+            else:
+                pose = pose_from_view(start.init_dets[k] if lens.wide else dets[k], target, start.sol.K, origin)
+        except (CircularPointError, np.linalg.LinAlgError) as exc:
+            reports[k].used, reports[k].reason = False, f"pose: {exc}"
+            continue
+        views.append(observations(dets[k], target, origin, opt))
+        poses0.append(pose_to_params(pose, dof))
+        idx.append(k)
+    return views, poses0, idx
+
+
+def _start_distortion(dets: list[Detection], start: ClosedFormStart, opt: CalibrationOptions, n: int, w: int,
+                      h: int) -> np.ndarray:
+    """The start's own D, zero, or k1 (k2) of the plumb-line division model when grids were straightened."""
+    D0 = np.zeros(n)
+    if start.D is not None:
+        D0[: min(n, len(start.D))] = start.D[:n]
+        return D0
+    if start.division and "k1" in DISTORTION_MODELS[opt.distortion]:
+        r_max = max(float(np.max(np.hypot(*(e.points - [w / 2, h / 2]).T))) for k in start.used for e in dets[k].edges)
+        f = float(np.sqrt(start.sol.K[0, 0] * start.sol.K[1, 1]))
+        D0[0], D0[1] = plumb_bob_from_division(start.division, f, r_max, "k2" in DISTORTION_MODELS[opt.distortion])
+    return D0

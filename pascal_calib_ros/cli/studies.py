@@ -1,0 +1,78 @@
+"""``pascal-calib bench``, ``experiment`` and ``study``: timings, the seed paper's experiments and the
+accuracy studies (:mod:`..studies`)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+from .common import EXIT_OK
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    b = sub.add_parser("bench", help="timings: detection of every shipped target at 800x600, 1920x1080 and "
+                                     "2456x2058 (and vs cv2.Canny), calibration vs view count")
+    b.add_argument("--json", action="store_true")
+    b.add_argument("--quick", action="store_true", help="fewer repetitions")
+    b.set_defaults(func=cmd_bench)
+    e = sub.add_parser("experiment", help="the seed paper's experiments: CSV + PNG + table")
+    e.add_argument("name", choices=["layouts", "methods", "literal", "board", "reconstruct"])
+    e.add_argument("--out", default="out/experiments")
+    e.add_argument("--trials", type=int, default=None,
+                   help="default: 50 (simulations), 3 sessions (board, reconstruct)")
+    e.add_argument("--seed", type=int, default=0)
+    e.set_defaults(func=cmd_experiment)
+    s = sub.add_parser("study", help="accuracy studies against ground truth (see README)")
+    s.add_argument("name", choices=["accuracy", "edge-bias", "grids", "target-shape", "lenses", "handeye", "trust",
+                                        "model-bias"])
+    s.add_argument("--draws", type=int, default=10, help="trust: noise draws and new sessions per scenario")
+    s.add_argument("--only", default="", help="trust: only the scenarios whose name contains this text")
+    s.add_argument("--opencv4-python", default="", help="handeye: a Python with OpenCV 4.x for calibrateHandEye")
+    s.add_argument("--targets", default="ring_a4,checkerboard_a4", help="handeye: targets, comma-separated")
+    s.add_argument("--arm-systematic-mm", type=float, default=0.25,
+                   help="handeye: amplitude of the arm's systematic position error field (0: random arm noise only)")
+    s.add_argument("--out", default="out/study")
+    s.add_argument("--views", type=int, default=None, help="default: 15 (lenses: 20 per lens)")
+    s.add_argument("--seed", type=int, default=1)
+    s.set_defaults(func=cmd_study)
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from ..studies.bench import run_bench
+
+    result: dict[str, Any] = dict(run_bench(quick=args.quick, print_table=not args.json))
+    if args.json:
+        print(json.dumps(result))
+    return EXIT_OK
+
+
+def cmd_study(args: argparse.Namespace) -> int:
+    if args.name == "handeye":
+        from ..studies.handeye_study import run_handeye_study
+
+        run_handeye_study(Path(args.out), views=args.views or 20, seed=args.seed, opencv4_python=args.opencv4_python,
+                          targets=tuple(args.targets.split(",")), systematic_mm=args.arm_systematic_mm)
+        return EXIT_OK
+    if args.name == "trust":
+        from ..studies.trust_study import trust
+
+        trust(Path(args.out), draws=args.draws, views=args.views or 12, only=args.only)
+        return EXIT_OK
+    if args.name == "model-bias":
+        from ..studies.model_bias_study import model_bias_study
+
+        model_bias_study(Path(args.out), views=args.views or 12)
+        return EXIT_OK
+    from ..studies.study import run_study
+
+    run_study(args.name, Path(args.out), views=args.views, seed=args.seed)
+    return EXIT_OK
+
+
+def cmd_experiment(args: argparse.Namespace) -> int:
+    from ..studies.experiments import run_experiment
+
+    run_experiment(args.name, Path(args.out), args.trials, args.seed)
+    return EXIT_OK

@@ -1,0 +1,164 @@
+"""The calibration node's parameters: the one table they are declared from (name, default, description,
+choices, range), their checks against each other and the target, and the Markdown table of
+``docs/nodes.md`` (``python -m pascal_calib_ros.ros.params``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from ..calibrate.options import METHODS
+from ..calibrate.problem import DISTORTION_MODELS, SHAPE_CHOICES
+from ..errors import PascalCalibError
+from ..targets import TargetError, resolve_target
+
+
+class ParameterError(PascalCalibError):
+    """A node parameter that cannot work (refused at start, exit code 2, or at run time)."""
+
+
+@dataclass(frozen=True)
+class Param:
+    name: str
+    default: Any
+    description: str
+    choices: tuple[str, ...] = ()
+    int_range: tuple[int, int] | None = None
+    float_range: tuple[float, float] | None = None
+
+
+# The one declaration table of the node's parameters.
+PARAMS = (
+    Param('target', 'ring_a4',
+          'target YAML path or packaged target name (ring_a4, pascal_board_a3, ...)',),
+    Param('method', '',
+          "`ring`, `pt2`, `pt1`, `huang`, `grid`, `zhang`; empty: the target's natural method (`grid` for grid "
+          'targets)', choices=('', *METHODS)),
+    Param('min_views', 8,
+          'views needed before calibrating (>= 3)', int_range=(3, 1000)),
+    Param('max_views', 40,
+          'views kept at most (bounded memory)', int_range=(3, 1000)),
+    Param('camera_name', 'camera',
+          'camera_name written to the YAML and CameraInfo consumers',),
+    Param('output_dir', '',
+          'keep accepted frames (`frames/<view name>.png`), the YAML, `calibration.json` and, after each successful'
+          ' `~/calibrate`, the report (`report.pdf`, `report.png`, `report.json`, see Calibration report) here',),
+    Param('calibration_file', '',
+          'YAML path; default `<output_dir>/<camera_name>.yaml`, else `~/.ros/camera_info/<camera_name>.yaml`',),
+    Param('zero_skew', True,
+          'estimate K with zero skew',),
+    Param('distortion_model', 'plumb_bob',
+          '`plumb_bob`, `plumb_bob_k3_fixed`, `radial`, `none`, `rational_polynomial` (8 coefficients), '
+          '`equidistant` (fisheye, 4 coefficients); with `equidistant` the detector also accepts circles a fisheye '
+          'bends away from ellipses', choices=tuple(DISTORTION_MODELS)),
+    Param('target_shape', '',
+          "also estimate the printed sheet's shape (grid and checkerboard targets): warp (out-of-plane bend), pitch"
+          ' (y/x scale ratio), all; empty: nominal flat sheet', choices=tuple(SHAPE_CHOICES)),
+    Param('cross_validate', False,
+          '`~/calibrate` also calibrates two interleaved halves of the views and compares them against their '
+          'projection uncertainty (see Cross-validation); needs 2 × `min_views` views; not with `hand_eye`',),
+    Param('gamma', 1.0,
+          'linearise intensities with this display gamma before locating edges: 1 for a linear sensor (most '
+          "machine-vision drivers' default), about 2.2 for sRGB webcams; matters for thin features (ring grids, see"
+          " Trust); as the CLI's `--gamma`", float_range=(0.2, 5.0)),
+    Param('auto_calibrate', False,
+          'calibrate as soon as the node is ready (and again as views are added)',),
+    Param('qos', 'auto',
+          '`auto` matches the publisher: reliable for reliable drivers (large frames are not lost), best-effort as '
+          'soon as a best-effort publisher is seen (re-checked every second); or force `reliable` / `best_effort`',
+          choices=('auto', 'reliable', 'best_effort')),
+    Param('transport', 'raw',
+          "raw (sensor_msgs/Image on 'image') | compressed ('image/compressed')", choices=('raw', 'compressed')),
+    Param('set_camera_info_service', 'camera/set_camera_info',
+          "driver's sensor_msgs/SetCameraInfo service",),
+    Param('min_view_distance', 0.08,
+          'diversity threshold between stored views (L1 in x, y, size, skew)', float_range=(0.0, 2.0)),
+    Param('collect', 'auto',
+          '`auto`: store frames that add diversity; `on_capture`: only `~/capture` stores views (robot-arm '
+          'sessions)', choices=('auto', 'on_capture')),
+    Param('capture_timeout', 5.0,
+          '~/capture waits this many seconds for a still frame', float_range=(0.1, 600.0)),
+    Param('max_motion_px', -1.0,
+          "a frame is used only if the target's features (circle centres and semi-axes, corners) moved less than "
+          'this since the previous examined frame and, with robot poses, the robot did not move (more than 0.1 mm /'
+          ' 0.01°) between the two frames; 0: off; -1 (auto): 0.5 px with `robot_pose_topic` or '
+          '`collect:=on_capture`, otherwise off (a hand-held board is never still to 0.5 px, and a replayed '
+          "folder's frames are different views); moving frames are counted as `rejected: moving`",
+          float_range=(-1.0, 1000.0)),
+    Param('robot_pose_topic', '',
+          'geometry_msgs/PoseStamped or TransformStamped of the tool in the robot base (empty: no robot poses)',),
+    Param('pose_max_age', 0.1,
+          "a view's pose is interpolated (rotation slerp, translation lerp) from the samples around its image stamp"
+          ' if both are within this many seconds, else the nearest sample within it; otherwise the view is refused '
+          'with "no robot pose"', float_range=(0.001, 10.0)),
+    Param('robot_base_frame', 'base_link',
+          'the robot base frame (robot poses must be in it)',),
+    Param('robot_tool_frame', 'tool0',
+          'the robot tool (flange) frame the poses describe',),
+    Param('camera_frame', 'camera_optical_frame',
+          'child frame of the published hand-eye transform',),
+    Param('hand_eye', '',
+          '`eye_in_hand` / `eye_to_hand`: `~/calibrate` also solves hand-eye (needs `robot_pose_topic`), publishes '
+          '`~/hand_eye` and CameraInfo, writes `hand_eye.yaml` beside the camera YAML '
+          '(`<camera_name>_hand_eye.yaml` in `~/.ros/camera_info/`), and answers `hand_eye <mode>: <parent> -> '
+          '<camera> t=[..] m std=[..] mm (arm accuracy share [..] mm) q=[..] rot_std=[..] deg views_used=N/M rms= '
+          'robot_error= yaml=; camera: ...`. Nothing is published if it fails: fewer than 3 views with a pose, '
+          'degenerate motions, a solver error, a non-finite result, or σ above 5 mm / 0.5°',
+          choices=('', 'eye_in_hand', 'eye_to_hand')),
+    Param('arm_accuracy_mm', 0.2,
+          "the arm's systematic position error (absolute accuracy over the session's workspace, per axis) that no "
+          'session can measure: its share is added to the hand-eye std; 0: left out', float_range=(0.0, 100.0)),
+    Param('arm_accuracy_length', 0.3,
+          'metres over which that error changes (its correlation length)', float_range=(0.01, 100.0)),
+)
+
+
+READ_ONLY = {"transport", "robot_pose_topic"}
+
+
+def validate_parameters(changes: dict[str, Any], current: dict[str, Any]) -> list[str]:
+    """Why the parameter ``changes`` cannot work together with the ``current`` values (empty: they
+    can): values outside their choices, a method the target lacks, a target shape for a target
+    without a grid or checkerboard, max_views < min_views, hand-eye without robot poses, a bad
+    stillness threshold, a target that cannot be loaded."""
+    values = {**current, **changes}
+    problems = []
+    table = {p.name: p for p in PARAMS}
+    for name, value in changes.items():
+        p = table.get(name)
+        if p is not None and p.choices and value not in p.choices:
+            problems.append(f"{name}={value!r} is not one of {', '.join(repr(c) for c in p.choices)}")
+    if values.get("target") is not None:
+        try:
+            t = resolve_target(str(values["target"]))
+            method = values.get("method", "")
+            if method and method not in t.methods():
+                problems.append(f"method {method!r} does not fit target {t.name} (supports {', '.join(t.methods())})")
+            if values.get("target_shape") and not (t.grids or t.checkerboards):
+                problems.append(f"target_shape needs a grid or checkerboard target; {t.name} has neither")
+        except TargetError as e:
+            problems.append(f"target: {e}")
+    if int(values.get("max_views", 1000)) < int(values.get("min_views", 3)):
+        problems.append(f"max_views {values.get('max_views')} < min_views {values.get('min_views')}")
+    if values.get("hand_eye") and not values.get("robot_pose_topic"):
+        problems.append(f"hand_eye={values['hand_eye']!r} needs robot poses: set robot_pose_topic")
+    motion = changes.get("max_motion_px")
+    if motion is not None and float(motion) < 0 and float(motion) != -1.0:
+        problems.append(f"max_motion_px={motion}: 0 (off), -1 (auto) or a positive threshold in px")
+    return problems
+
+
+def declare_parameters(node: Any) -> None:
+    """Declare every parameter of :data:`PARAMS` on ``node`` with its description, choices and range
+    (what ``ros2 param describe`` shows)."""
+    from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+
+    for p in PARAMS:
+        desc = ParameterDescriptor(description=p.description + (f" ({', '.join(p.choices)})" if p.choices else ""),
+                                   read_only=p.name in READ_ONLY)
+        if p.int_range:
+            desc.integer_range = [IntegerRange(from_value=p.int_range[0], to_value=p.int_range[1], step=1)]
+        if p.float_range:
+            desc.floating_point_range = [FloatingPointRange(from_value=p.float_range[0], to_value=p.float_range[1],
+                                                            step=0.0)]
+        node.declare_parameter(p.name, p.default, desc)

@@ -1,0 +1,117 @@
+"""The hand-eye calibration as the CLI and the node run it: the frames by mode, the joint estimate
+and its assessment, whether the node may publish it, and the lines and files it leaves."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..analysis.assessment import Assessment, assess
+from ..calibrate.handeye import HandEyeOptions, HandEyeResult, calibrate_hand_eye
+from ..calibrate.options import CalibrationOptions
+from ..detect.detection import Detection
+from ..geometry.transform import Transform
+from ..io.hand_eye_yaml import HandEyeRecord
+from ..targets import Target
+from .intrinsic import camera_answer
+
+MAX_HAND_EYE_STD_MM = 5.0  # a hand-eye transform less certain than this is not published
+MAX_HAND_EYE_STD_DEG = 0.5
+
+
+def hand_eye_frames(mode: str, base_frame: str, tool_frame: str) -> tuple[str, str]:
+    """(parent frame of the camera, frame the target is fixed in): eye in hand the tool and the
+    base; eye to hand the base and the tool."""
+    return (tool_frame, base_frame) if mode == "eye_in_hand" else (base_frame, tool_frame)
+
+
+@dataclass
+class HandEyeOutcome:
+    """The joint estimate, its camera's assessment and the seconds it took."""
+
+    result: HandEyeResult
+    assessment: Assessment
+    seconds: float
+
+    def record(self, parent_frame: str, camera_frame: str, target_frame: str) -> HandEyeRecord:
+        """What HAND_EYE.yaml holds."""
+        he = self.result
+        return HandEyeRecord(mode=he.mode, parent_frame=parent_frame, child_frame=camera_frame, X=he.hand_eye,
+                             translation_std_mm=_three(he.translation_std_mm),
+                             rotation_std_deg=_three(he.rotation_std_deg), target_frame=target_frame,
+                             target=he.target, views_used=int(he.views_used), rms_px=float(he.rms_px))
+
+    def answer(self, parent: str, camera_frame: str, n_views: int, hand_eye_yaml: str, camera_yaml: str
+               ) -> tuple[str, str]:
+        """(the transform's line, the node's whole ``~/calibrate`` answer: that line and the camera's)."""
+        line = hand_eye_line(self.result, parent, camera_frame, n_views, hand_eye_yaml)
+        return line, f"{line}; camera: {camera_answer(self.assessment, self.seconds, camera_yaml, self.warnings)}"
+
+    @property
+    def warnings(self) -> list[str]:
+        """The camera's and the hand-eye estimate's warnings, each once."""
+        return list(dict.fromkeys([*self.assessment.warnings, *self.result.warnings]))
+
+
+def _three(v: np.ndarray) -> tuple[float, float, float]:
+    a = np.asarray(v, float).ravel()
+    return float(a[0]), float(a[1]), float(a[2])
+
+
+def run_hand_eye(dets: list[Detection], robot_poses: Sequence[Transform | None], target: Target,
+                 options: CalibrationOptions, he_options: HandEyeOptions, *, distance: float | None = None
+                 ) -> HandEyeOutcome:
+    """Intrinsics and the hand-eye transform in one estimate (:func:`~..calibrate.handeye.
+    calibrate_hand_eye`), the camera assessed as an intrinsic calibration is.
+
+    Raises
+    ------
+    CalibrationError
+        (and its HandEyeError) when the views or the robot poses cannot give a result.
+    """
+    t0 = time.perf_counter()
+    he = calibrate_hand_eye(dets, robot_poses, target, he_options.mode, options, he_options)
+    return HandEyeOutcome(he, assess(he.calibration, distance), time.perf_counter() - t0)
+
+
+def hand_eye_doubts(he: HandEyeResult) -> list[str]:
+    """Why a hand-eye result must not be published (a transform or sigma that is not finite, sigma
+    above :data:`MAX_HAND_EYE_STD_MM` / :data:`MAX_HAND_EYE_STD_DEG`); empty if it may."""
+    problems = []
+    X = he.hand_eye
+    t_std = np.asarray(he.translation_std_mm, float)
+    r_std = np.asarray(he.rotation_std_deg, float)
+    if not (np.all(np.isfinite(X.translation)) and np.all(np.isfinite(X.quat))):
+        problems.append("the transform is not finite")
+    if not (np.all(np.isfinite(t_std)) and np.all(np.isfinite(r_std))):
+        problems.append("its uncertainty is unknown (the robot motions do not determine it)")
+    else:
+        if t_std.max() > MAX_HAND_EYE_STD_MM:
+            problems.append(f"translation std up to {t_std.max():.2f} mm (> {MAX_HAND_EYE_STD_MM:g} mm)")
+        if r_std.max() > MAX_HAND_EYE_STD_DEG:
+            problems.append(f"rotation std up to {r_std.max():.3f} deg (> {MAX_HAND_EYE_STD_DEG:g} deg)")
+    return problems
+
+
+def static_transform_command(X: Transform, parent: str, child: str) -> str:
+    """The ``static_transform_publisher`` line that publishes X (child = camera in parent)."""
+    t, q = X.translation, X.quat
+    return ("ros2 run tf2_ros static_transform_publisher "
+            f"--x {t[0]:.6f} --y {t[1]:.6f} --z {t[2]:.6f} --qx {q[0]:.7f} --qy {q[1]:.7f} --qz {q[2]:.7f} "
+            f"--qw {q[3]:.7f} --frame-id {parent} --child-frame-id {child}")
+
+
+def hand_eye_line(he: HandEyeResult, parent: str, camera_frame: str, n_views: int, yaml_path: str) -> str:
+    """The node's answer for the transform: 'hand_eye <mode>: <parent> -> <camera> t=[..] m std=[..]
+    mm (arm accuracy share [..] mm) q=[..] rot_std=[..] deg views_used=N/M rms= robot_error= yaml='."""
+    X, q = he.hand_eye, he.hand_eye.quat
+    return (f"hand_eye {he.mode}: {parent} -> {camera_frame} t=[{', '.join(f'{v:.5f}' for v in X.translation)}] m "
+            f"std=[{', '.join(f'{v:.3f}' for v in he.translation_std_mm)}] mm "
+            f"(arm accuracy share [{', '.join(f'{v:.3f}' for v in he.arm_share_mm)}] mm) "
+            f"q=[{', '.join(f'{v:.6f}' for v in q)}] "
+            f"rot_std=[{', '.join(f'{v:.4f}' for v in he.rotation_std_deg)}] deg "
+            f"views_used={he.views_used}/{n_views} rms={he.rms_px:.3f}px "
+            f"robot_error={he.robot_error_mm:.3f}mm/{he.robot_error_deg:.4f}deg yaml={yaml_path}")

@@ -1,0 +1,69 @@
+"""What a calibration leaves behind, the same from the CLI and the node: the CameraInfo data (K, D,
+R = I, P the rectified projection), the camera YAML, ``calibration.json`` and the report."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..analysis.assessment import Assessment
+from ..calibrate.result import CalibrationResult
+from ..detect.detection import Detection
+from ..geometry.camera import rectified_projection
+from ..io.camera_yaml import CameraInfoData, write_camera_yaml
+from ..report.pages import ReportFiles, write_report
+from ..report.text import summary_line
+
+ImageSource = Callable[[str], "np.ndarray | None"]  # a view's name -> its grey image (None: not at hand)
+
+
+def camera_info_data(res: CalibrationResult, camera_name: str) -> CameraInfoData:
+    """The CameraInfo of a calibration: K, D, its ROS distortion model, R = I and P the rectified
+    projection (:func:`~..geometry.camera.rectified_projection`: [K 0] for pinhole models)."""
+    return CameraInfoData(res.width, res.height, camera_name, res.K, res.D, res.model,
+                          P=rectified_projection(res.camera()))
+
+
+def calibration_file_path(camera_name: str, output_dir: str = "", calibration_file: str = "") -> Path:
+    """Where the camera YAML goes: ``calibration_file``, else ``<output_dir>/<camera_name>.yaml``,
+    else ``~/.ros/camera_info/<camera_name>.yaml`` (camera_info_manager's default)."""
+    if calibration_file:
+        return Path(calibration_file).expanduser()
+    if output_dir:
+        return Path(output_dir) / f"{camera_name}.yaml"
+    return Path.home() / ".ros" / "camera_info" / f"{camera_name}.yaml"
+
+
+def hand_eye_file_path(camera_yaml: Path, camera_name: str) -> Path:
+    """``hand_eye.yaml`` beside the camera YAML, or ``<camera_name>_hand_eye.yaml`` in
+    ``~/.ros/camera_info/`` (one folder for every camera)."""
+    if camera_yaml.parent == Path.home() / ".ros" / "camera_info":
+        return camera_yaml.parent / f"{camera_name}_hand_eye.yaml"
+    return camera_yaml.parent / "hand_eye.yaml"
+
+
+def write_camera_file(res: CalibrationResult, path: str | Path, camera_name: str) -> Path:
+    """The camera_calibration_parsers YAML of a calibration."""
+    return write_camera_yaml(path, camera_info_data(res, camera_name))
+
+
+def calibration_json(res: CalibrationResult) -> dict[str, Any]:
+    """``calibration.json``: the summary line, K, D, their sigmas, RMS, degeneracy, warnings, the
+    target shape and every view's fate."""
+    return {"summary": summary_line(res), "K": res.K.tolist(), "D": res.D.tolist(), "std": res.std,
+            "rms": res.rms, "degeneracy_ratio": res.degeneracy_ratio, "warnings": res.warnings,
+            "target_shape": res.shape, "target_shape_std": res.shape_std,
+            "views": [{"name": v.name, "used": v.used, "reason": v.reason, "rms": v.rms} for v in res.views]}
+
+
+def write_session_files(a: Assessment, dets: list[Detection], out_dir: str | Path, images: ImageSource | None,
+                        hand_eye: Any = None) -> ReportFiles:
+    """``calibration.json`` and the report (``report.pdf``, ``.png``, ``.json``) in ``out_dir``."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "calibration.json").write_text(json.dumps(calibration_json(a.result), indent=1, default=float))
+    return write_report(a, dets, out, images=images, hand_eye=hand_eye)

@@ -1,0 +1,288 @@
+"""Hand-eye calibration: Park-Martin, degenerate motions, the joint estimate on a rendered arm
+session, a robot pose that contradicts the images, POSES.yaml, the CLI."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import yaml
+
+from pascal_calib_ros.analysis.assessment import assess
+from pascal_calib_ros.calibrate.handeye import (
+    HandEyeError,
+    HandEyeOptions,
+    arm_field_covariance,
+    calibrate_hand_eye,
+    hand_eye_closed_form,
+    park_martin,
+)
+from pascal_calib_ros.calibrate.handeye.closed_form import ring_closed_form
+from pascal_calib_ros.calibrate.result import CalibrationError
+from pascal_calib_ros.detect.detection import Detection
+from pascal_calib_ros.detect.target_detector import detect_target
+from pascal_calib_ros.geometry.transform import Transform
+from pascal_calib_ros.io.hand_eye_yaml import PosesYamlError, read_poses_yaml, write_poses_yaml
+from pascal_calib_ros.report.pages import PAGES
+from pascal_calib_ros.report.text import hand_eye_summary
+from pascal_calib_ros.sim.arm import ArmSession, ArmSpec, hand_eye_errors, simulate_arm_session
+from pascal_calib_ros.targets import Target
+
+
+def run(*args: str) -> subprocess.CompletedProcess:
+    """``pascal-calib`` as a user runs it (as test_cli.run)."""
+    exe = shutil.which("pascal-calib", path=str(Path(sys.executable).parent)) or "pascal-calib"
+    return subprocess.run([exe, *args], capture_output=True, text=True, timeout=600,
+                          env={**os.environ, "PYTHONWARNINGS": "ignore"})
+
+
+def _loop(n: int, seed: int) -> tuple[Transform, Transform, list[Transform], list[Transform]]:
+    rng = np.random.default_rng(seed)
+    X = Transform.from_rotvec(rng.normal(size=3), 0.1 * rng.normal(size=3))
+    Y = Transform.from_rotvec(rng.normal(size=3), rng.normal(size=3))
+    M = [Transform.from_rotvec(rng.normal(size=3), rng.normal(size=3)) for _ in range(n)]
+    C = [X.inverse() @ m.inverse() @ Y for m in M]  # Y = M X C
+    return X, Y, M, C
+
+
+def test_park_martin_is_exact_on_noise_free_motions() -> None:
+    X, Y, M, C = _loop(5, 0)
+    A = [M[1].inverse() @ M[0], M[2].inverse() @ M[1], M[3].inverse() @ M[0]]
+    B = [C[1] @ C[0].inverse(), C[2] @ C[1].inverse(), C[3] @ C[0].inverse()]
+    np.testing.assert_allclose(park_martin(A, B).matrix, X.matrix, atol=1e-12)
+    Xe, Ye = hand_eye_closed_form(M, C)
+    np.testing.assert_allclose(Xe.matrix, X.matrix, atol=1e-12)
+    np.testing.assert_allclose(Ye.matrix, Y.matrix, atol=1e-12)
+    # a single ring: only the centre and the normal of each view
+    Xr, Yr = ring_closed_form(M, np.array([c.translation for c in C]), np.array([c.R[:, 2] for c in C]))
+    np.testing.assert_allclose(Xr.matrix, X.matrix, atol=1e-9)
+    np.testing.assert_allclose(Yr.translation, Y.translation, atol=1e-9)
+
+
+def _dummy(n: int) -> list[Detection]:
+    return [Detection(640, 480, name=f"v{k}") for k in range(n)]
+
+
+def test_degenerate_motions_are_refused(ring_target: Target) -> None:
+    base = Transform.from_rotvec([0.1, 0.2, 0.3], [0.4, 0.0, 0.5])
+    shifts = [base @ Transform.from_rotvec([0, 0, 0], [0.05 * k, 0.02 * k * k, 0.01]) for k in range(5)]
+    with pytest.raises(HandEyeError, match="pure translations"):
+        calibrate_hand_eye(_dummy(5), list(shifts), ring_target, "eye_in_hand")
+    axis = [base @ Transform.from_rotvec([0, 0, 0.3 * k], [0.05 * k, 0.0, 0.0]) for k in range(5)]
+    with pytest.raises(HandEyeError, match="single axis"):
+        calibrate_hand_eye(_dummy(5), list(axis), ring_target, "eye_to_hand")
+    with pytest.raises(HandEyeError, match="at least 3"):
+        calibrate_hand_eye(_dummy(3), [base, None, axis[1]], ring_target, "eye_in_hand")
+    with pytest.raises(HandEyeError, match="one per view"):
+        calibrate_hand_eye(_dummy(3), [base], ring_target, "eye_in_hand")
+    with pytest.raises(HandEyeError, match="unknown hand-eye mode"):
+        calibrate_hand_eye(_dummy(3), [base] * 3, ring_target, "eye_on_hand")
+    assert issubclass(HandEyeError, CalibrationError)
+
+
+@pytest.fixture(scope="module")
+def arm_session(ring_target: Target) -> tuple[ArmSession, list[Detection]]:
+    """7 views of the ring from a camera on the arm (640x480, mild distortion, arm noise 0.1 mm,
+    0.01 deg and a systematic error field of 0.25 mm per axis)."""
+    s = simulate_arm_session(ring_target, ArmSpec(mode="eye_in_hand", views=7, width=640, height=480, k1=-0.1,
+                                                  seed=3))
+    dets = [detect_target(im, ring_target, name=n) for im, n in zip(s.images[ring_target.name], s.names, strict=True)]
+    return s, dets
+
+
+def test_joint_estimate_on_a_rendered_eye_in_hand_session(ring_target: Target, arm_session) -> None:
+    s, dets = arm_session
+    res = calibrate_hand_eye(dets, s.robot_poses, ring_target, "eye_in_hand")
+    err_mm, err_deg, _, _ = hand_eye_errors(res.hand_eye, s.hand_eye)
+    assert res.views_used == 7
+    assert err_mm < 1.0 and err_deg < 0.1, (err_mm, err_deg)
+    assert np.all(res.translation_std_mm > 0) and np.all(res.rotation_std_deg > 0)
+    assert err_mm < 5 * np.linalg.norm(res.translation_std_mm) + 0.3  # sigma plus the arm's systematic error
+    K, Kt = res.calibration.K, s.camera.K
+    assert abs(K[0, 0] / Kt[0, 0] - 1) < 0.002 and abs(K[0, 2] - Kt[0, 2]) < 2
+    assert res.rms_px < 0.2 and 0.01 < res.robot_error_mm < 1.0
+    # the ring's centre lies where the target pose puts it (its rotation about the axis is free)
+    ctr = np.array([*ring_target.rings[0].center, 0.0])
+    assert np.linalg.norm(res.target.apply(ctr) - s.target_pose.apply(ctr)) < 1e-3
+    assert all(v["used"] and v["disagreement_mm"] < 2 for v in res.per_view)
+
+
+def test_a_robot_pose_from_another_view_is_dropped_with_the_reason(ring_target: Target, arm_session) -> None:
+    s, dets = arm_session
+    poses = list(s.robot_poses)
+    poses[2] = poses[5]  # a wrong frame: the pose of another view
+    res = calibrate_hand_eye(dets, poses, ring_target, "eye_in_hand")
+    bad = res.per_view[2]
+    assert not bad["used"] and "disagrees with the image" in bad["reason"], bad
+    assert res.views_used == 6
+    assert hand_eye_errors(res.hand_eye, s.hand_eye)[0] < 1.5
+
+
+def test_poses_yaml_round_trip_and_bad_input(tmp_path: Path) -> None:
+    poses = {"a.png": Transform.from_rotvec([0.1, 0.2, 0.3], [0.4, -0.1, 0.5])}
+    p = write_poses_yaml(tmp_path / "poses.yaml", "base_link", "tool0", poses)
+    frame, child, read = read_poses_yaml(p)
+    assert (frame, child) == ("base_link", "tool0")
+    np.testing.assert_allclose(read["a.png"].matrix, poses["a.png"].matrix, atol=1e-9)
+    cases = {
+        "frame_id: [\n": "not valid YAML",
+        "frame_id: b\nchild_frame_id: t\nposes: []\n": "non-empty list",
+        "child_frame_id: t\nposes: [{image: a.png}]\n": "'frame_id' missing",
+        "frame_id: b\nchild_frame_id: t\nposes: [{image: a.png, translation: [0, 0, 0]}]\n": "'rotation' missing",
+        "frame_id: b\nchild_frame_id: t\nposes: [{translation: [0, 0, 0], rotation: [0, 0, 0, 1]}]\n":
+            "'image' missing",
+        "frame_id: b\nchild_frame_id: t\nposes: [{image: a.png, translation: [0, 0, 0], rotation: [0, 0, 0, 2]}]\n":
+            "not a unit quaternion",
+        "frame_id: b\nchild_frame_id: t\nposes: [{image: a.png, translation: [0, 0], rotation: [0, 0, 0, 1]}]\n":
+            "list of 3 numbers",
+    }
+    for text, why in cases.items():
+        bad = tmp_path / "bad.yaml"
+        bad.write_text(text)
+        with pytest.raises(PosesYamlError, match=why):
+            read_poses_yaml(bad)
+    with pytest.raises(PosesYamlError, match="cannot read"):
+        read_poses_yaml(tmp_path / "missing.yaml")
+
+
+def test_cli_handeye_end_to_end(arm_session, tmp_path: Path) -> None:
+    s, _ = arm_session
+    imgs = tmp_path / "imgs"
+    imgs.mkdir()
+    for name, im in zip(s.names, s.images["ring_a4"], strict=True):
+        cv2.imwrite(str(imgs / name), im)
+    poses = dict(zip(s.names, s.robot_poses, strict=True))
+    del poses[s.names[-1]]  # one image without a pose: refused with the reason
+    write_poses_yaml(tmp_path / "poses.yaml", "base_link", "tool0", poses)
+    out = tmp_path / "cam.yaml"
+    r = run("handeye", "--target", "ring_a4", "--poses", str(tmp_path / "poses.yaml"), "--mode", "eye_in_hand",
+            "-o", str(out), str(imgs))
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "no robot pose for this view" in r.stdout
+    assert "static_transform_publisher" in r.stdout and "--frame-id tool0 --child-frame-id camera_optical_frame" \
+        in r.stdout
+    doc = yaml.safe_load((tmp_path / "hand_eye.yaml").read_text())
+    assert doc["mode"] == "eye_in_hand" and doc["parent_frame"] == "tool0" and doc["target_frame"] == "base_link"
+    assert doc["views_used"] == 6 and len(doc["rotation_std_deg"]) == 3
+    X = Transform.from_quat(doc["rotation"], doc["translation"])
+    assert hand_eye_errors(X, s.hand_eye)[0] < 1.5
+    assert yaml.safe_load(out.read_text())["camera_matrix"]["rows"] == 3
+    bad = run("handeye", "--target", "ring_a4", "--poses", str(tmp_path / "nope.yaml"), "--mode", "eye_in_hand",
+              "-o", str(out), str(imgs))
+    assert bad.returncode == 2 and "cannot read" in bad.stderr
+    # without the arm-accuracy prior: a smaller sigma, said so; a bad prior is refused before any work
+    r0 = run("handeye", "--target", "ring_a4", "--poses", str(tmp_path / "poses.yaml"), "--mode", "eye_in_hand",
+             "-o", str(tmp_path / "cam0.yaml"), "--arm-accuracy-mm", "0", "--report", str(tmp_path / "rep"), str(imgs))
+    assert r0.returncode == 0 and "std without the arm's systematic error" in r0.stdout, r0.stdout + r0.stderr
+    # the report has the hand-eye page and numbers
+    rep = json.loads((tmp_path / "rep" / "report.json").read_text())["hand_eye"]
+    assert rep["mode"] == "eye_in_hand" and rep["arm_accuracy"]["mm"] == 0.0 and rep["views_used"] == 6
+    assert len(rep["per_view"]) == 7 and sum(not v["used"] for v in rep["per_view"]) == 1
+    assert len(re.findall(rb"/Type /Page\b", (tmp_path / "rep" / "report.pdf").read_bytes())) == PAGES + 1
+    doc0 = yaml.safe_load((tmp_path / "hand_eye.yaml").read_text())
+    assert np.all(np.array(doc0["translation_std_mm"]) < np.array(doc["translation_std_mm"]))
+    assert "of the std, the arm's assumed systematic error (0.2 mm over 0.3 m)" in r.stdout
+    bad = run("handeye", "--target", "ring_a4", "--poses", str(tmp_path / "poses.yaml"), "--mode", "eye_in_hand",
+              "-o", str(out), "--arm-accuracy-mm", "-1", str(imgs))
+    assert bad.returncode == 2 and "--arm-accuracy-mm" in bad.stderr
+
+
+def test_grid_labelled_turned_in_some_views_is_relabelled_through_the_chain() -> None:
+    """A symmetric grid (ring_grid_a4 looks the same turned by 180 deg) whose detection labels two
+    views turned: the chain picks the consistent labelling, X stays right."""
+    from dataclasses import replace
+
+    from pascal_calib_ros.calibrate.handeye.labelling import target_symmetries
+    from pascal_calib_ros.targets import resolve_target
+
+    grid = resolve_target("ring_grid_a4")
+    origin = grid.circles[0].center
+    syms = target_symmetries(grid, origin)
+    assert len(syms) > 1
+    s = simulate_arm_session(grid, ArmSpec(mode="eye_in_hand", views=8, width=640, height=480, k1=-0.1, seed=5))
+    dets = [detect_target(im, grid, name=n) for im, n in zip(s.images[grid.name], s.names, strict=True)]
+    ctr = np.array([c.center for c in grid.circles])
+    mid = (ctr.min(0) + ctr.max(0)) / 2
+    turned = 2 * mid - ctr  # the 180 deg turn about the features' centre
+    rad = np.array([c.radius for c in grid.circles])
+    perm = [int(np.argmin(np.linalg.norm(ctr - p, axis=1) + abs(rad - r))) for p, r in zip(turned, rad, strict=True)]
+    for k in (2, 5):
+        dets[k] = replace(dets[k], edges=[replace(e, circle=perm[e.circle]) for e in dets[k].edges])
+    res = calibrate_hand_eye(dets, s.robot_poses, grid, "eye_in_hand")
+    assert any("relabelled" in w for w in res.warnings), res.warnings
+    assert res.views_used == 8, [v for v in res.per_view if not v["used"]]
+    err_mm, err_deg, _, _ = hand_eye_errors(res.hand_eye, s.hand_eye)
+    assert err_mm < 1.0 and err_deg < 0.1, (err_mm, err_deg)
+
+
+def test_fisheye_arm_session() -> None:
+    """An equidistant (fisheye) camera on the arm: the joint estimate works with that lens model."""
+    from pascal_calib_ros.calibrate.options import CalibrationOptions
+    from pascal_calib_ros.detect.detection import DetectionParams
+    from pascal_calib_ros.targets import resolve_target
+
+    grid = resolve_target("ring_grid_a4")
+    s = simulate_arm_session(grid, ArmSpec(mode="eye_to_hand", views=8, width=640, height=480, focal=300.0,
+                                           lens="equidistant", dist=(0.02, -0.01, 0.0, 0.0), seed=4))
+    dets = [detect_target(im, grid, DetectionParams.for_lens(True), name=n)
+            for im, n in zip(s.images[grid.name], s.names, strict=True)]
+    res = calibrate_hand_eye(dets, s.robot_poses, grid, "eye_to_hand", CalibrationOptions(distortion="equidistant"))
+    assert res.views_used >= 7
+    err_mm, err_deg, _, _ = hand_eye_errors(res.hand_eye, s.hand_eye)
+    assert err_mm < 2.0 and err_deg < 0.2, (err_mm, err_deg)
+    assert abs(res.calibration.K[0, 0] / s.camera.K[0, 0] - 1) < 0.005
+
+
+def test_checkerboard_hand_eye_keeps_its_corner_residuals(tmp_path: Path) -> None:
+    """A plain checkerboard arm session: the joint result carries each view's corner residuals
+    (observed - predicted), whose RMS is the result's, so its report has residual statistics."""
+    import json
+
+    from pascal_calib_ros.report.pages import write_report
+    from pascal_calib_ros.targets import resolve_target
+
+    board = resolve_target("checkerboard_a4")
+    s = simulate_arm_session(board, ArmSpec(views=8, width=640, height=480, focal=560, seed=5))
+    dets = [detect_target(im, board, name=f"v{k}") for k, im in enumerate(s.images[board.name])]
+    res = calibrate_hand_eye(dets, s.robot_poses, board, "eye_in_hand")
+    cal = res.calibration
+    assert len(cal.corner_residuals) == len(cal.corner_points) == res.views_used
+    assert all(r.shape == p.shape for r, p in zip(cal.corner_residuals, cal.corner_points, strict=True))
+    r = np.concatenate(cal.corner_residuals)
+    assert np.sqrt(np.mean(np.sum(r * r, 1))) == pytest.approx(res.rms_px, rel=1e-6)
+    data = json.loads(write_report(assess(cal), dets, tmp_path).json.read_text())
+    assert sum(map(sum, data["residuals"]["regional"]["count"])) == len(r)
+    assert len(data["residuals"]["per_view_rms_px"]) == res.views_used
+
+
+def test_arm_accuracy_share_is_the_spread_of_x_under_drawn_arm_errors(ring_target: Target, arm_session) -> None:
+    """The arm-accuracy share of sigma(X) (a Gaussian-process position error field, carried through
+    the joint estimate's linearisation) matches the spread of X when such fields are drawn and added to
+    the reported tool positions (Monte Carlo, 12 draws; the images unchanged)."""
+    s, dets = arm_session
+    he = HandEyeOptions("eye_in_hand", 0.1, 0.01, estimate_robot_noise=False, jackknife_groups=0,
+                        arm_accuracy_mm=0.5, arm_accuracy_length=0.2)
+    ref = calibrate_hand_eye(dets, s.robot_poses, ring_target, "eye_in_hand", he=he)
+    assert np.all(ref.arm_share_mm > 0) and np.all(ref.arm_share_mm <= ref.translation_std_mm)
+    assert "arm's assumed systematic error (0.5 mm over 0.2 m)" in hand_eye_summary(ref)
+    pos = np.array([g.translation for g in s.robot_poses])
+    L = np.linalg.cholesky(arm_field_covariance(pos, 0.5e-3, 0.2) + 1e-18 * np.eye(3 * len(pos)))
+    rng = np.random.default_rng(5)
+    shifts = []
+    for _ in range(12):
+        e = (L @ rng.normal(size=3 * len(pos))).reshape(-1, 3)
+        moved = [Transform(g.rotation, g.translation + d) for g, d in zip(s.robot_poses, e, strict=True)]
+        r = calibrate_hand_eye(dets, moved, ring_target, "eye_in_hand", he=replace(he, arm_accuracy_mm=0.0))
+        shifts.append(1000 * (r.hand_eye.translation - ref.hand_eye.translation))
+    spread = np.sqrt(np.mean(np.square(shifts), 0))
+    ratio = np.linalg.norm(spread) / np.linalg.norm(ref.arm_share_mm)
+    assert 0.6 < ratio < 1.6, (spread, ref.arm_share_mm)

@@ -1,0 +1,43 @@
+"""The house in figures (issue 23): no import cycle, no module over 500 lines (studies aside), no
+function over 80 lines, no call with more than 8 positional arguments. The layer order and rclpy
+only in ros/ are checked by import-linter in ``make lint`` (pyproject.toml)."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import grimp
+
+PACKAGE = Path(__file__).resolve().parents[2] / "pascal_calib_ros"
+MAX_MODULE_LINES, MAX_FUNCTION_LINES, MAX_POSITIONAL = 500, 80, 8
+
+
+def _modules() -> list[Path]:
+    return sorted(PACKAGE.rglob("*.py"))
+
+
+def test_no_import_cycle() -> None:
+    g = grimp.build_graph("pascal_calib_ros", exclude_type_checking_imports=True)
+    cycles = [(a, b) for a in g.modules for b in g.find_modules_directly_imported_by(a)
+              if a != b and g.chain_exists(importer=b, imported=a)]
+    assert not cycles, f"import cycles: {sorted(cycles)[:10]}"
+
+
+def test_modules_are_small() -> None:
+    big = {str(p.relative_to(PACKAGE)): n for p in _modules() if "studies" not in p.parts
+           and (n := p.read_text().count("\n") + 1) > MAX_MODULE_LINES}
+    assert not big, f"modules over {MAX_MODULE_LINES} lines: {big}"
+
+
+def test_functions_are_short_and_calls_name_their_arguments() -> None:
+    long_functions, wide_calls = [], []
+    for p in _modules():
+        for node in ast.walk(ast.parse(p.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and \
+                    node.end_lineno - node.lineno + 1 > MAX_FUNCTION_LINES:  # type: ignore[operator]
+                long_functions.append(f"{p.relative_to(PACKAGE)}:{node.lineno} {node.name}")
+            if isinstance(node, ast.Call) and len(node.args) > MAX_POSITIONAL:
+                wide_calls.append(f"{p.relative_to(PACKAGE)}:{node.lineno} {ast.unparse(node.func)}")
+    assert not long_functions, f"functions over {MAX_FUNCTION_LINES} lines: {long_functions}"
+    assert not wide_calls, f"calls with more than {MAX_POSITIONAL} positional arguments: {wide_calls}"
