@@ -53,10 +53,15 @@ def calibrate_zhang(dets: list[Detection], target: Target, distortion: str = "pl
     if len(used) < 3:
         raise DegenerateViewsError(f"zhang: checkerboard found in {len(used)} view(s); need at least 3")
     w, h = dets[used[0]].width, dets[used[0]].height
-    if distortion == "equidistant":
-        K, D, rms, rvecs, tvecs, std = _fisheye(obj, img, w, h)
-    else:
-        K, D, rms, rvecs, tvecs, std = _pinhole(obj, img, w, h, distortion)
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)  # OpenCV's threads make its last bits (~1e-13) differ from run to run
+    try:
+        if distortion == "equidistant":
+            K, D, rms, rvecs, tvecs, std = _fisheye(obj, img, w, h)
+        else:
+            K, D, rms, rvecs, tvecs, std = _pinhole(obj, img, w, h, distortion)
+    finally:
+        cv2.setNumThreads(threads)
     o = np.array([origin[0], origin[1], 0.0])
     poses = []
     for rv, tv in zip(rvecs, tvecs, strict=True):

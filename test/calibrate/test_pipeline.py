@@ -152,9 +152,9 @@ def test_zhang_without_refinement_is_opencv_on_the_same_corners(checkerboard_ses
     obj = np.c_[target.checkerboard.corner_points(), np.zeros(70)].astype(np.float32)  # type: ignore[union-attr]
     img = [d.corners.astype(np.float32).reshape(-1, 1, 2) for d in dets if d.corners is not None]
     rms, K, D, _, _ = cv2.calibrateCamera([obj] * len(img), img, (800, 600), None, None)
-    # OpenCV's own threads make it repeat itself only to about 1e-9
-    assert np.allclose(res.K, K, rtol=1e-7, atol=0) and np.allclose(res.D, D.ravel(), rtol=1e-6, atol=1e-9)
-    assert res.rms == pytest.approx(rms, rel=1e-7) and res.refinement is None and assess(res).projection is None
+    # OpenCV's own threads make it repeat itself only to about 1e-13 (the pipeline runs it in one thread)
+    assert np.allclose(res.K, K, rtol=1e-9, atol=0) and np.allclose(res.D, D.ravel(), rtol=1e-9, atol=1e-11)
+    assert res.rms == pytest.approx(rms, rel=1e-9) and res.refinement is None and assess(res).projection is None
     assert "OpenCV" in res.std_model
 
 

@@ -26,7 +26,6 @@ from pascal_calib_ros.session.collector import ViewCollector
 from pascal_calib_ros.sim.render import Pose, SensorModel, render_view
 from pascal_calib_ros.sim.session import SessionSpec
 from pascal_calib_ros.targets import Target, resolve_target
-from pascal_calib_ros.workflows.hand_eye import hand_eye_doubts
 
 S = 10**9
 
@@ -206,16 +205,3 @@ def test_capture_stores_a_view_like_a_stored_one(frames: dict[str, Detection]) -
     assert msg.startswith("view 1 stored: target at (4") and " px, tilt " in msg and "robot tool at [0.4000" in msg
     col.clear()
     assert col.robot_poses == [] and col.views == []
-
-
-def test_hand_eye_doubts() -> None:
-    class R:
-        hand_eye = Transform.from_rotvec([0, 0, 0.1], [0.04, 0.0, 0.07])
-        translation_std_mm = np.array([0.1, 0.1, 0.2])
-        rotation_std_deg = np.array([0.01, 0.01, 0.02])
-
-    assert hand_eye_doubts(R()) == []
-    R.translation_std_mm = np.array([0.1, 30.0, 0.2])
-    assert "translation std up to 30.00 mm" in hand_eye_doubts(R())[0]
-    R.rotation_std_deg = np.array([np.nan, 0, 0])
-    assert "uncertainty is unknown" in hand_eye_doubts(R())[0]
