@@ -18,6 +18,7 @@ import numpy as np
 
 from .calibrate.pipeline import METHODS, CalibrationError, CalibrationOptions, CalibrationResult, calibrate
 from .calibrate.refine import DISTORTION_MODELS, SHAPE_CHOICES
+from .cli_export import write_sidecar
 from .detect.detection import Detection, DetectionParams
 from .detect.target_detector import detect_target
 from .geometry.camera import rectified_projection
@@ -176,6 +177,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                           P=rectified_projection(res.camera()))
     out = write_camera_yaml(args.output, info)
     print(f"wrote {out}")
+    print(f"wrote {write_sidecar(res, out, args.camera_name)}")
     if args.report:
         _write_report(res, dets, args.report, paths)
     if args.cross_validate:
@@ -281,6 +283,7 @@ def cmd_handeye(args: argparse.Namespace) -> int:
                           P=rectified_projection(cal.camera()))
     out = write_camera_yaml(args.output, info)
     print(f"wrote {out}")
+    print(f"wrote {write_sidecar(cal, out, args.camera_name)}")
     parent = child_id if args.mode == "eye_in_hand" else frame_id
     target_frame = frame_id if args.mode == "eye_in_hand" else child_id
     he_out = Path(args.hand_eye_out) if args.hand_eye_out else Path(args.output).parent / "hand_eye.yaml"
@@ -395,11 +398,12 @@ def cmd_target(args: argparse.Namespace) -> int:
 def cmd_diff(args: argparse.Namespace) -> int:
     """Projection difference of calibration B against A after the implied rotation (mrcal's
     projection_diff; :mod:`.calibrate.compare`), over the image or a report's observed field."""
-    from .calibrate.compare import camera_from_yaml, projection_difference, region_from_report
+    from .calibrate.compare import projection_difference, region_from_report
     from .errors import PascalCalibError
+    from .io.calibration_files import read_calibration_file
 
     try:
-        a, b = camera_from_yaml(args.a), camera_from_yaml(args.b)
+        a, b = read_calibration_file(args.a).camera, read_calibration_file(args.b).camera
         mask = None if args.region == "image" else region_from_report(args.region).mask
         res = projection_difference(a, b, mask, args.distance, args.step)
     except PascalCalibError as e:
@@ -503,8 +507,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     df = sub.add_parser("diff", help="projection difference between two calibrations of one camera (after the "
                                      "implied rotation, as mrcal-show-projection-diff)")
-    df.add_argument("a", metavar="A.yaml", help="camera_calibration_parsers YAML (the reference)")
-    df.add_argument("b", metavar="B.yaml", help="camera_calibration_parsers YAML compared against A")
+    df.add_argument("a", metavar="A.yaml", help="the reference calibration: ROS camera YAML, calibration.json, "
+                                                "OpenCV FileStorage, Kalibr camchain (cam0) or mrcal .cameramodel")
+    df.add_argument("b", metavar="B.yaml", help="the calibration compared against A (any of those formats)")
     df.add_argument("--region", default="image", metavar="image|REPORT_JSON",
                     help="grid over the whole image (default) or over the observed field of a calibration "
                          "report.json (coverage.view_hulls)")
@@ -514,6 +519,10 @@ def build_parser() -> argparse.ArgumentParser:
     df.add_argument("--step", type=float, default=16.0, metavar="PX", help="grid spacing in pixels")
     df.add_argument("--plot", metavar="OUT.png", help="write a heat map of the difference over the image")
     df.set_defaults(func=cmd_diff)
+
+    from .cli_export import add_export_parser
+
+    add_export_parser(sub)
 
     r = sub.add_parser("render", help="render a synthetic session with ground truth")
     r.add_argument("--target", default="ring_a4")

@@ -1,0 +1,34 @@
+"""The :class:`~..io.calibration_json.CalibrationRecord` of a calibration result: the camera, the
+marginal covariance of the estimated intrinsics and the observed field, for ``calibration.json``."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..calibrate.diagnostics import view_hulls
+from ..calibrate.pipeline import CalibrationResult
+from ..io.calibration_json import CalibrationRecord
+
+
+def intrinsic_covariance(res: CalibrationResult) -> tuple[tuple[str, ...], np.ndarray | None]:
+    """(names, covariance) of the estimated intrinsics (fx fy cx cy [skew] and the estimated
+    coefficients): the leading block of the refinement's sandwich covariance, which is the
+    intrinsics' marginal covariance with every view's pose and edge offset estimated too. Without a
+    refinement (zhang, --no-refine) the names of ``res.std`` and no covariance."""
+    ref = res.refinement
+    if ref is None or ref.covariance is None or ref.problem is None:
+        return tuple(res.std), None
+    prob = ref.problem
+    names = tuple(prob.names[i] for i in prob.free)
+    n = len(names)
+    return names, np.asarray(ref.covariance[:n, :n], float).copy()
+
+
+def record_of_calibration(res: CalibrationResult, camera_name: str = "camera", note: str = "") -> CalibrationRecord:
+    """What ``calibration.json`` keeps of a calibration (module docstring)."""
+    names, cov = intrinsic_covariance(res)
+    proj = res.projection_summary()
+    hulls = view_hulls(res.feature_points()) if res.edge_points else []
+    summary = {k: float(v) for k, v in proj.items()} if proj and all(np.isfinite(list(proj.values()))) else None
+    return CalibrationRecord(res.camera(), camera_name, res.distortion_model, names, cov, hulls, float(res.rms),
+                             res.n_used, summary, note=note)
