@@ -521,8 +521,10 @@ def build_parser() -> argparse.ArgumentParser:
     df.set_defaults(func=cmd_diff)
 
     from .cli_export import add_export_parser
+    from .cli_verify import add_verify_parser
 
     add_export_parser(sub)
+    add_verify_parser(sub)
 
     r = sub.add_parser("render", help="render a synthetic session with ground truth")
     r.add_argument("--target", default="ring_a4")

@@ -134,6 +134,10 @@ class HandEyeResult:
     arm_share_deg: np.ndarray = field(default_factory=lambda: np.zeros(3))
     arm_accuracy_mm: float = 0.0  # the prior used (HandEyeOptions.arm_accuracy_mm / _length)
     arm_accuracy_length: float = 0.0
+    # of translation_std_mm / rotation_std_deg: the held intrinsics' share (their error moves X alike in every later
+    # estimate with the same intrinsics: pascal-calib verify takes it out of the comparison)
+    intrinsics_share_mm: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    intrinsics_share_deg: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     @property
     def parent_frame_role(self) -> str:
@@ -646,7 +650,8 @@ def calibrate_hand_eye(dets: list[Detection], robot_poses: Sequence[Transform | 
         warnings.append("a single ring: the target's rotation about its axis is not observable (reported "
                         "arbitrarily); X is not affected")
     return HandEyeResult(calib, mode, X, sx_t, sx_r, Y @ to_yaml, len(kept), rms, sig_t, sig_r, per_view, warnings,
-                         X0, sy_t, sy_r, cal.K.copy(), ax_t, ax_r, he.arm_accuracy_mm, he.arm_accuracy_length)
+                         X0, sy_t, sy_r, cal.K.copy(), ax_t, ax_r, he.arm_accuracy_mm, he.arm_accuracy_length,
+                         intrinsics_share_mm=ix_t, intrinsics_share_deg=ix_r)
 
 
 def _complete_ring_poses(M: list[Transform], X: Transform, Y: Transform, C: list[Transform]) -> list[Transform]:

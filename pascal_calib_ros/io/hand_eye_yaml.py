@@ -18,6 +18,8 @@ HAND_EYE.yaml::
     rotation: [qx, qy, qz, qw]
     translation_std_mm: [sx, sy, sz]       # along the parent frame's axes
     rotation_std_deg: [rx, ry, rz]         # small rotations about the parent frame's axes
+    translation_std_intrinsics_mm: [..]    # of those sigmas, the held intrinsics' share (the same error moves
+    rotation_std_intrinsics_deg: [..]      # every X estimated with these intrinsics: verify leaves it out)
     target_frame: base_link                 # where the target was estimated (eye_to_hand: the tool)
     target_translation: [x, y, z]           # target origin (the target YAML's frame) in target_frame
     target_rotation: [qx, qy, qz, qw]
@@ -125,6 +127,8 @@ def hand_eye_document(result: Any, parent_frame: str, child_frame: str, target_f
         "rotation": _floats(X.quat),
         "translation_std_mm": _floats(result.translation_std_mm),
         "rotation_std_deg": _floats(result.rotation_std_deg),
+        "translation_std_intrinsics_mm": _floats(result.intrinsics_share_mm),
+        "rotation_std_intrinsics_deg": _floats(result.intrinsics_share_deg),
         "target_frame": target_frame,
         "target_translation": _floats(Y.translation),
         "target_rotation": _floats(Y.quat),
