@@ -338,6 +338,11 @@ def cmd_study(args: argparse.Namespace) -> int:
 
         trust(Path(args.out), draws=args.draws, views=args.views or 12, only=args.only)
         return EXIT_OK
+    if args.name == "verify":
+        from .studies.verify_study import StudySpec, verify_study
+
+        verify_study(Path(args.out), StudySpec(sessions=args.sessions, views=args.views or 10, seed=args.seed))
+        return EXIT_OK
     if args.name == "model-bias":
         from .sim.model_bias_study import model_bias_study
 
@@ -590,7 +595,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("study", help="accuracy studies against ground truth (see README)")
     s.add_argument("name", choices=["accuracy", "edge-bias", "grids", "target-shape", "lenses", "handeye", "trust",
-                                        "model-bias"])
+                                        "model-bias", "verify"])
+    s.add_argument("--sessions", type=int, default=20, help="verify: verification sessions per scenario")
     s.add_argument("--draws", type=int, default=10, help="trust: noise draws and new sessions per scenario")
     s.add_argument("--only", default="", help="trust: only the scenarios whose name contains this text")
     s.add_argument("--opencv4-python", default="", help="handeye: a Python with OpenCV 4.x for calibrateHandEye")

@@ -121,9 +121,9 @@ def camera_from_opencv_text(text: str, where: str = "OpenCV file") -> Camera:
     """The camera of a FileStorage document (YAML, XML or JSON text)."""
     try:
         fs = cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
-    except cv2.error as e:
-        raise CalibrationFileError(f"{where}: not an OpenCV FileStorage file ({str(e).strip().splitlines()[-1]})"
-                                   ) from None
+    except (cv2.error, SystemError) as e:  # SystemError: OpenCV's Python binding on a parse error
+        why = str(getattr(e, "__cause__", None) or e).strip().splitlines() or ["parse error"]
+        raise CalibrationFileError(f"{where}: not an OpenCV FileStorage file ({why[-1]})") from None
     try:
         k = _node(fs, KEYS_K)
         d = _node(fs, KEYS_D)
