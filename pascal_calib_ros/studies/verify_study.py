@@ -162,7 +162,7 @@ def hand_eye_sessions(s: StudySpec, log: Callable[[str], None]) -> list[dict[str
     return rows
 
 
-def timing(s: StudySpec, log: Callable[[str], None], repeats: int = 3) -> dict[str, float]:
+def timing(s: StudySpec, log: Callable[[str], None], repeats: int = 3) -> dict[str, Any]:
     """Median time of one verification of ``s.views`` views at 1280x800 (and of their detection)."""
     target = resolve_target(s.target)
     params = DetectionParams(gamma=s.gamma)
@@ -185,7 +185,7 @@ def timing(s: StudySpec, log: Callable[[str], None], repeats: int = 3) -> dict[s
     return out
 
 
-def summary_table(rows: list[dict[str, Any]], timed: dict[str, float] | None) -> str:
+def summary_table(rows: list[dict[str, Any]], timed: dict[str, Any] | None) -> str:
     """The Markdown table of the study's figures."""
     lines = ["| scenario | sessions | verdict as expected | named | median projection shift (px) | median time (s) |",
              "|---|---|---|---|---|---|"]
