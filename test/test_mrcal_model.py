@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from export_cases import FISHEYE, PLUMB, RATIONAL, grid_points
 
+from pascal_calib_ros.analysis.refit_splined import refit_splined
 from pascal_calib_ros.geometry.camera import Camera
 from pascal_calib_ros.io.format_error import CalibrationFileError
 from pascal_calib_ros.io.mrcal_model import (
@@ -32,6 +33,7 @@ m = mrcal.cameramodel(sys.argv[1])
 np.save(sys.argv[3], mrcal.project(np.load(sys.argv[2]), *m.intrinsics()))
 print(m.intrinsics()[0], list(m.imagersize()))
 """
+
 
 
 def mrcal_python() -> Path | None:
@@ -62,6 +64,22 @@ def test_mrcal_reads_what_we_wrote_and_projects_as_we_do(tmp_path: Path, cam: Ca
     q, out = mrcal_project(path, X, tmp_path)
     assert f"LENSMODEL_OPENCV{5 if cam.model == 'plumb_bob' else 8}" in out
     assert np.abs(q - cam.project(X)).max() < 1e-6
+
+
+def test_mrcal_projects_our_splined_refit_of_a_fisheye_as_we_do(tmp_path: Path) -> None:
+    """The splined stereographic model (mrcal's, for a fisheye) as mrcal projects it, over the whole
+    image including rays beyond 90 degrees, within 1e-6 px of our implementation of it."""
+    res = refit_splined(FISHEYE, force=True)
+    spline = res.camera.spline  # type: ignore[attr-defined]
+    path = write_mrcal_model(tmp_path / "f.cameramodel", MrcalModel(spline.lensmodel, spline.intrinsics, 640, 480))
+    us, vs = np.meshgrid(np.arange(0.0, 641.0, 8.0), np.arange(0.0, 481.0, 8.0))
+    rays = FISHEYE.unproject(np.stack([us.ravel(), vs.ravel()], 1))
+    X = 3.0 * rays[np.all(np.isfinite(rays), 1)]
+    assert (X[:, 2] < 0).any()  # beyond 90 degrees
+    q, out = mrcal_project(path, X, tmp_path)
+    assert "LENSMODEL_SPLINED_STEREOGRAPHIC" in out
+    assert np.abs(q - spline.project(X)).max() < 1e-6
+    assert res.rms_px < 0.01 and np.abs(spline.project(X) - FISHEYE.project(X)).max() < 0.2  # to the image's corners
 
 
 @pytest.mark.parametrize("cam", [PLUMB, RATIONAL], ids=["plumb_bob", "rational_polynomial"])

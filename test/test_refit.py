@@ -21,6 +21,8 @@ from pascal_calib_ros.cli import main
 from pascal_calib_ros.geometry.camera import Camera
 from pascal_calib_ros.io.calibration_json import CalibrationRecord, write_calibration_json
 from pascal_calib_ros.io.kalibr_camchain import read_kalibr_camchain
+from pascal_calib_ros.io.mrcal_model import parse_mrcal_model
+from pascal_calib_ros.io.mrcal_splined import SplinedModel, parse_lensmodel
 
 # a lens whose rational radial factor plumb_bob holds to a few hundredths of a pixel only
 WIDE = Camera.from_params(550.0, 551.0, 400.3, 300.1, dist=[0.4, -0.1, 0.0005, -0.0003, 0.0, 0.65, -0.05, 0.0],
@@ -120,15 +122,18 @@ def test_every_format_through_the_cli_and_diff_reads_them(tmp_path: Path, capsys
 
 
 def test_a_fisheye_is_refitted_for_mrcal_with_its_error_stated(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
-    # within 75 degrees of the axis a rational model holds the fisheye: mrcal's OPENCV8
-    hull = [np.array([[170.0, 90.0], [470.0, 90.0], [470.0, 390.0], [170.0, 390.0]])]
-    src = write_source(tmp_path, FISHEYE, hull)
+    # mrcal has no equidistant model: its splined stereographic one, over the whole image (rays beyond 90 degrees)
+    src = write_source(tmp_path, FISHEYE)
     out = tmp_path / "f.cameramodel"
-    assert main(["export", str(src), "--to", "mrcal", "--region", str(src), "-o", str(out)]) == 0
+    assert main(["export", str(src), "--to", "mrcal", "-o", str(out)]) == 0
     text = capsys.readouterr().out
-    assert "equidistant -> rational_polynomial" in text and "LENSMODEL_OPENCV8" in out.read_text()
-    assert "valid_intrinsics_region" in out.read_text()
-    assert main(["export", str(src), "--to", "mrcal", "-o", str(out)]) == 1  # the whole image: rays near 90 degrees
+    assert "equidistant -> LENSMODEL_SPLINED_STEREOGRAPHIC_order=3_Nx=24" in text
+    stated_rms = float(text.split("projection error ")[1].split(" px rms")[0])
+    assert stated_rms < 0.01
+    model = parse_mrcal_model(out.read_text())
+    spline = SplinedModel(*parse_lensmodel(model.lensmodel)[1:], model.intrinsics, model.width, model.height)
+    X = 2.0 * FISHEYE.unproject(np.array([[5.0, 5.0], [320.0, 240.0], [600.0, 20.0], [100.0, 400.0]]))
+    assert np.abs(spline.project(X) - FISHEYE.project(X)).max() < 0.2
 
 
 def test_hand_eye_files_export_to_urdf_and_static_transform(tmp_path: Path) -> None:

@@ -9,8 +9,8 @@ to            writes                                                 refits (err
 opencv        FileStorage YAML (:mod:`~..io.opencv_storage`)          only with ``model``
 kalibr        camchain entry (:mod:`~..io.kalibr_camchain`): radtan   plumb_bob with k3 != 0 and
               (plumb_bob with k3 = 0) or equidistant                  rational_polynomial -> radtan
-mrcal         ``.cameramodel`` (:mod:`~..io.mrcal_model`):            equidistant -> OPENCV8 (rays
-              OPENCV5 / OPENCV8                                       within 80 degrees only)
+mrcal         ``.cameramodel`` (:mod:`~..io.mrcal_model`):            equidistant -> SPLINED_STEREO-
+              OPENCV5 / OPENCV8                                       GRAPHIC (:mod:`~..analysis.refit_splined`)
 json          ``calibration.json`` (:mod:`~..io.calibration_json`)   only with ``model``
 urdf          a fixed joint of a HAND_EYE.yaml                        -
 static_transform  the static_transform_publisher command of one       -
@@ -32,6 +32,8 @@ import cv2
 import numpy as np
 
 from ..analysis.refit import DEFAULT_MAX_ERROR_PX, RefitResult, refit_camera
+from ..analysis.refit_splined import CHOICE as SPLINED
+from ..analysis.refit_splined import SplinedCamera, refit_splined
 from ..calibrate.compare import CompareError, region_from_report
 from ..errors import PascalCalibError
 from ..geometry.camera import Camera
@@ -42,7 +44,7 @@ from ..io.format_error import CalibrationFileError
 from ..io.hand_eye_export import static_transform_line, urdf_joint_text
 from ..io.hand_eye_yaml import PosesYamlError, read_hand_eye_yaml
 from ..io.kalibr_camchain import KalibrCamera, kalibr_distortion, write_kalibr_camchain
-from ..io.mrcal_model import mrcal_model_of_camera, write_mrcal_model
+from ..io.mrcal_model import MrcalModel, mrcal_model_of_camera, write_mrcal_model
 from ..io.opencv_storage import write_opencv_storage
 
 CAMERA_FORMATS = ("opencv", "kalibr", "mrcal", "json")
@@ -92,7 +94,7 @@ def refit_choice(camera: Camera, to: str, model: str) -> str:
             return "plumb_bob_k3_fixed"
         return camera.model if skew else ""
     if to == "mrcal" and camera.model == "equidistant":
-        return "rational_polynomial"
+        return SPLINED
     return camera.model if skew else ""
 
 
@@ -125,7 +127,11 @@ def _write(req: ExportRequest, cf: CalibrationFile, cam: Camera, note: str, mask
     if req.to == "kalibr":
         return write_kalibr_camchain(req.output, [KalibrCamera(cam, rostopic=req.rostopic)], note)
     if req.to == "mrcal":
-        model = mrcal_model_of_camera(cam)
+        if isinstance(cam, SplinedCamera) and cam.spline is not None:
+            sp = cam.spline
+            model = MrcalModel(sp.lensmodel, sp.intrinsics, sp.width, sp.height)
+        else:
+            model = mrcal_model_of_camera(cam)
         if mask is not None and mask.any():
             model = replace(model, valid_intrinsics_region=region_contour(mask))
         return write_mrcal_model(req.output, model, note)
@@ -169,7 +175,8 @@ def export_calibration(req: ExportRequest) -> ExportOutcome:
     cam = cf.camera
     note = f"exported by pascal-calib from {req.source.name} ({cf.format})"
     if choice:
-        refit = refit_camera(cf.camera, choice, mask, where, req.max_error_px, req.force)
+        refit = (refit_splined(cf.camera, mask, where, req.max_error_px, req.force) if choice == SPLINED
+                 else refit_camera(cf.camera, choice, mask, where, req.max_error_px, req.force))
         cam = refit.camera
         lines.append(refit.summary())
         if not refit.ok:
