@@ -341,7 +341,10 @@ def cmd_study(args: argparse.Namespace) -> int:
     if args.name == "verify":
         from .studies.verify_study import StudySpec, verify_study
 
-        verify_study(Path(args.out), StudySpec(sessions=args.sessions, views=args.views or 10, seed=args.seed))
+        parts = {"camera", "hand-eye", "timing"} if not args.only else set(args.only.split(","))
+        verify_study(Path(args.out), StudySpec(sessions=args.sessions, views=args.views or 10, seed=args.seed,
+                                               camera="camera" in parts, hand_eye="hand-eye" in parts,
+                                               timing="timing" in parts))
         return EXIT_OK
     if args.name == "model-bias":
         from .sim.model_bias_study import model_bias_study
@@ -598,7 +601,8 @@ def build_parser() -> argparse.ArgumentParser:
                                         "model-bias", "verify"])
     s.add_argument("--sessions", type=int, default=20, help="verify: verification sessions per scenario")
     s.add_argument("--draws", type=int, default=10, help="trust: noise draws and new sessions per scenario")
-    s.add_argument("--only", default="", help="trust: only the scenarios whose name contains this text")
+    s.add_argument("--only", default="", help="trust: only the scenarios whose name contains this text; verify: "
+                                              "camera, hand-eye and/or timing (comma-separated)")
     s.add_argument("--opencv4-python", default="", help="handeye: a Python with OpenCV 4.x for calibrateHandEye")
     s.add_argument("--targets", default="ring_a4,checkerboard_a4", help="handeye: targets, comma-separated")
     s.add_argument("--arm-systematic-mm", type=float, default=0.25,
