@@ -18,11 +18,14 @@ from scipy.spatial.transform import Rotation
 from pascal_calib_ros.analysis.refit import RefitError, refit_camera
 from pascal_calib_ros.calibrate.compare import Region
 from pascal_calib_ros.cli import main
+from pascal_calib_ros.errors import PascalCalibError
 from pascal_calib_ros.geometry.camera import Camera
+from pascal_calib_ros.io.calibration_files import read_calibration_file
 from pascal_calib_ros.io.calibration_json import CalibrationRecord, write_calibration_json
 from pascal_calib_ros.io.kalibr_camchain import read_kalibr_camchain
 from pascal_calib_ros.io.mrcal_model import parse_mrcal_model
 from pascal_calib_ros.io.mrcal_splined import SplinedModel, parse_lensmodel
+from pascal_calib_ros.workflows.verify import reference_of_file
 
 # a lens whose rational radial factor plumb_bob holds to a few hundredths of a pixel only
 WIDE = Camera.from_params(550.0, 551.0, 400.3, 300.1, dist=[0.4, -0.1, 0.0005, -0.0003, 0.0, 0.65, -0.05, 0.0],
@@ -134,6 +137,13 @@ def test_a_fisheye_is_refitted_for_mrcal_with_its_error_stated(tmp_path: Path, c
     spline = SplinedModel(*parse_lensmodel(model.lensmodel)[1:], model.intrinsics, model.width, model.height)
     X = 2.0 * FISHEYE.unproject(np.array([[5.0, 5.0], [320.0, 240.0], [600.0, 20.0], [100.0, 400.0]]))
     assert np.abs(spline.project(X) - FISHEYE.project(X)).max() < 0.2
+    # the splined file reads back (diff compares it; verify refuses it; export refits it only when asked)
+    assert main(["diff", str(src), str(out), "--step", "8"]) == 0
+    measured = float(capsys.readouterr().out.split("rms ")[1].split(" px")[0])
+    assert measured < 0.01
+    with pytest.raises(PascalCalibError, match="compare it with pascal-calib diff"):
+        reference_of_file(read_calibration_file(out))
+    assert main(["export", str(out), "--to", "opencv", "-o", str(tmp_path / "o.yaml")]) == 2
 
 
 def test_hand_eye_files_export_to_urdf_and_static_transform(tmp_path: Path) -> None:

@@ -13,65 +13,18 @@ reach.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from ..calibrate.compare import CompareError, projection_difference
 from ..calibrate.diagnostics import grid_pixels
 from ..geometry.camera import Camera
-from ..geometry.lens import LensModel
-from ..io.mrcal_splined import SplinedModel, design_matrix, stereographic
+from ..io.mrcal_splined import SplinedModel, design_matrix, splined_camera, stereographic
 from .refit import DEFAULT_MAX_ERROR_PX, FIT_STEP_DIVISOR, RefitError, RefitResult, measure_step, worst_with_boundary
 
 NX = 24  # knots across the image
 FOV_MARGIN_DEG = 4  # degrees added to the image's horizontal field
 SMOOTHING = 1e-6  # weight of the second-difference penalty against the data (per unit of A^T A's mean diagonal)
 CHOICE = "mrcal_splined"
-
-
-@dataclass(frozen=True)
-class SplinedLens(LensModel):
-    """The lens of a :class:`SplinedCamera` as far as the projection difference needs one: wide
-    (stereographic: defined up to 180 degrees), no coefficients of ours."""
-
-    @property
-    def wide(self) -> bool:
-        return True
-
-    def check(self, D: np.ndarray) -> np.ndarray:
-        return np.asarray(D, float)
-
-    def max_angle(self, D: np.ndarray) -> float:
-        return float(np.pi) * 0.999
-
-
-SPLINED_LENS = SplinedLens("mrcal_splined", ())
-
-
-@dataclass(frozen=True)
-class SplinedCamera(Camera):
-    """A camera whose projection is an mrcal splined model (K: its fx fy cx cy; D unused)."""
-
-    spline: SplinedModel | None = None
-
-    @property
-    def lens(self) -> LensModel:
-        return SPLINED_LENS
-
-    def project(self, X: np.ndarray) -> np.ndarray:
-        assert self.spline is not None
-        return self.spline.project(X)
-
-    def unproject(self, uv: np.ndarray) -> np.ndarray:
-        assert self.spline is not None
-        return self.spline.unproject(np.asarray(uv, float).reshape(-1, 2)).reshape(*np.shape(uv)[:-1], 3)
-
-
-def splined_camera(model: SplinedModel) -> SplinedCamera:
-    fx, fy, cx, cy = model.intrinsics[:4]
-    K = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
-    return SplinedCamera(K, np.zeros(0), model.width, model.height, "mrcal_splined", spline=model)
 
 
 def _grid_shape(source: Camera) -> tuple[int, int, int]:

@@ -32,6 +32,7 @@ import numpy as np
 
 from ..geometry.camera import Camera
 from .format_error import CalibrationFileError, check_exportable
+from .mrcal_splined import SplinedModel, parse_lensmodel, splined_camera
 
 # mrcal lens model -> (our model, number of distortion coefficients mrcal stores)
 OPENCV_MODELS = {"LENSMODEL_PINHOLE": ("plumb_bob", 0), "LENSMODEL_OPENCV4": ("plumb_bob", 4),
@@ -72,7 +73,19 @@ def mrcal_model_of_camera(camera: Camera) -> MrcalModel:
 
 
 def camera_of_mrcal_model(model: MrcalModel, where: str = "cameramodel") -> Camera:
-    """Our camera of an mrcal OPENCV* or PINHOLE model (others: :class:`CalibrationFileError`)."""
+    """Our camera of an mrcal OPENCV* or PINHOLE model, or a
+    :class:`~.mrcal_splined.SplinedCamera` of a cubic splined stereographic one (which ``diff`` and
+    ``export --model`` take; others: :class:`CalibrationFileError`)."""
+    spline = parse_lensmodel(model.lensmodel)
+    if spline is not None:
+        order, nx, ny, fov = spline
+        if order != 3:
+            raise CalibrationFileError(f"{where}: splined models of order {order}: only cubic (order 3) ones read")
+        try:
+            return splined_camera(SplinedModel(nx, ny, fov, np.asarray(model.intrinsics, float), model.width,
+                                               model.height))
+        except ValueError as e:
+            raise CalibrationFileError(f"{where}: {e}") from None
     if model.lensmodel not in OPENCV_MODELS:
         raise CalibrationFileError(f"{where}: lens model {model.lensmodel} has no equivalent here (readable: "
                                    f"{', '.join(OPENCV_MODELS)})")

@@ -23,6 +23,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..geometry.camera import Camera
+from ..geometry.lens import LensModel
+
 PATTERN = re.compile(r"^LENSMODEL_SPLINED_STEREOGRAPHIC_order=(\d+)_Nx=(\d+)_Ny=(\d+)_fov_x_deg=(\d+)$")
 
 
@@ -146,3 +149,47 @@ def parse_lensmodel(name: str) -> tuple[int, int, int, int] | None:
     """(order, Nx, Ny, fov_x_deg) of a splined model's name, or None."""
     m = PATTERN.match(name)
     return None if m is None else tuple(int(g) for g in m.groups())  # type: ignore[return-value]
+
+
+@dataclass(frozen=True)
+class SplinedLens(LensModel):
+    """The lens of a :class:`SplinedCamera` as far as the projection difference needs one: wide
+    (stereographic: defined up to 180 degrees), no coefficients of ours."""
+
+    @property
+    def wide(self) -> bool:
+        return True
+
+    def check(self, D: np.ndarray) -> np.ndarray:
+        return np.asarray(D, float)
+
+    def max_angle(self, D: np.ndarray) -> float:
+        return float(np.pi) * 0.999
+
+
+SPLINED_LENS = SplinedLens("mrcal_splined", ())
+
+
+@dataclass(frozen=True)
+class SplinedCamera(Camera):
+    """A camera whose projection is an mrcal splined model (K: its fx fy cx cy; D unused)."""
+
+    spline: SplinedModel | None = None
+
+    @property
+    def lens(self) -> LensModel:
+        return SPLINED_LENS
+
+    def project(self, X: np.ndarray) -> np.ndarray:
+        assert self.spline is not None
+        return self.spline.project(X)
+
+    def unproject(self, uv: np.ndarray) -> np.ndarray:
+        assert self.spline is not None
+        return self.spline.unproject(np.asarray(uv, float).reshape(-1, 2)).reshape(*np.shape(uv)[:-1], 3)
+
+
+def splined_camera(model: SplinedModel) -> SplinedCamera:
+    fx, fy, cx, cy = model.intrinsics[:4]
+    K = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+    return SplinedCamera(K, np.zeros(0), model.width, model.height, "mrcal_splined", spline=model)

@@ -33,7 +33,7 @@ import numpy as np
 
 from ..analysis.refit import DEFAULT_MAX_ERROR_PX, RefitResult, refit_camera
 from ..analysis.refit_splined import CHOICE as SPLINED
-from ..analysis.refit_splined import SplinedCamera, refit_splined
+from ..analysis.refit_splined import refit_splined
 from ..calibrate.compare import CompareError, region_from_report
 from ..errors import PascalCalibError
 from ..geometry.camera import Camera
@@ -45,6 +45,7 @@ from ..io.hand_eye_export import static_transform_line, urdf_joint_text
 from ..io.hand_eye_yaml import PosesYamlError, read_hand_eye_yaml
 from ..io.kalibr_camchain import KalibrCamera, kalibr_distortion, write_kalibr_camchain
 from ..io.mrcal_model import MrcalModel, mrcal_model_of_camera, write_mrcal_model
+from ..io.mrcal_splined import SplinedCamera
 from ..io.opencv_storage import write_opencv_storage
 
 CAMERA_FORMATS = ("opencv", "kalibr", "mrcal", "json")
@@ -86,6 +87,11 @@ def refit_choice(camera: Camera, to: str, model: str) -> str:
         if (to == "kalibr" and model == "rational_polynomial") or (to == "mrcal" and model == "equidistant"):
             raise ExportError(f"{to} has no {model} model")
         return model
+    if isinstance(camera, SplinedCamera):
+        if to == "mrcal":
+            return ""
+        raise ExportError(f"an mrcal splined model has no {to} equivalent: name the model to refit it into "
+                          "(--model plumb_bob, rational_polynomial, ...)")
     skew = camera.K[0, 1] != 0.0 and to != "json"
     if to == "kalibr":
         try:

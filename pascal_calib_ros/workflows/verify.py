@@ -22,6 +22,7 @@ from ..analysis.verify_hand_eye import HandEyeReference
 from ..detect.detection import Detection, DetectionParams
 from ..detect.target_detector import detect_target
 from ..errors import PascalCalibError
+from ..geometry.lens import MODELS
 from ..geometry.transform import Transform
 from ..io.calibration_files import CalibrationFile, read_calibration_file
 from ..io.hand_eye_yaml import read_hand_eye_yaml, read_poses_yaml
@@ -56,6 +57,9 @@ class VerifyOutcome:
 def reference_of_file(cf: CalibrationFile) -> Reference:
     """The calibration under test: the camera and, from its record, what was estimated and its
     covariance."""
+    if cf.camera.model not in MODELS:
+        raise VerifyInputError(f"{cf.path}: verify tests {', '.join(MODELS)} cameras; this one is an {cf.camera.model} "
+                               "model (compare it with pascal-calib diff)")
     rec = cf.record
     if rec is None or rec.covariance is None:
         return Reference(cf.camera, rec.distortion_choice if rec else "")
