@@ -91,8 +91,9 @@ def refit_splined(source: Camera, region_mask: np.ndarray | None = None, region:
         raise RefitError(f"the refit cannot be measured over {region}: {e}") from None
     frame = cam.project(source.unproject(diff.pixels)) - diff.pixels
     worst, at = worst_with_boundary(source, cam, diff, region_mask)
-    res = RefitResult(cam, source, model.lensmodel, region, diff, float(np.nanmax(np.linalg.norm(frame, axis=1))),
-                      threshold_px, worst, at)
+    res = RefitResult(camera=cam, source=source, choice=model.lensmodel, region=region, diff=diff,
+                      frame_max_px=float(np.nanmax(np.linalg.norm(frame, axis=1))), threshold_px=threshold_px,
+                      worst_px=worst, worst_pixel=at)
     if not res.ok and not force:
         raise RefitError(f"{res.summary()}; {res.where_it_fails()}. Refused: above --max-error {threshold_px:g} px "
                          "(--force writes it anyway)")

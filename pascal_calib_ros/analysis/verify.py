@@ -208,5 +208,7 @@ def check_intrinsics(fresh_views: FreshViews, ref: Reference, alpha: float = DEF
     except CompareError:
         shift = None
     expected = expected_shift_rms(cam, names, cov, shift.pixels) if shift is not None else float("nan")
-    return IntrinsicCheck(params, groups, fresh, shift, expected, fv.rms_fixed, float(res.rms),
-                          ref.covariance is not None, float(norm.isf(alpha / (len(groups) + extra_groups) / 2)), res)
+    return IntrinsicCheck(parameters=params, groups=groups, fresh=fresh, shift=shift, expected_shift_rms_px=expected,
+                          rms_fixed_px=fv.rms_fixed, rms_free_px=float(res.rms),
+                          stored_covariance=ref.covariance is not None,
+                          z_level=float(norm.isf(alpha / (len(groups) + extra_groups) / 2)), refinement=res)

@@ -138,9 +138,9 @@ def check_hand_eye(fv: FreshViews, robot_poses: list[Transform], cam: Camera, ch
     opt = CalibrationOptions(distortion=choice, zero_skew=cam.K[0, 1] == 0.0, edge_offsets=fv.use_offsets)
     he = HandEyeOptions(ref.mode, jackknife_groups=0, arm_accuracy_mm=ref.arm_accuracy_mm,
                         arm_accuracy_length=ref.arm_accuracy_length)
-    cal = CalibrationResult(cam.K, np.asarray(cam.D, float), cam.width, cam.height, "verify", fv.rms_fixed, {},
-                            float("nan"), [])
-    X, _, _, info = _refine_chain(views, M, ref.X, Y0, C, cal, opt, he, target, fv.origin)
+    cal = CalibrationResult(K=cam.K, D=np.asarray(cam.D, float), width=cam.width, height=cam.height, method="verify",
+                            rms=fv.rms_fixed, std={}, degeneracy_ratio=float("nan"), views=[])
+    X, _, _, info = _refine_chain(views, M, ref.X, Y0, C, cal, opt, he, target=target, origin=fv.origin)
     err_mm, err_deg, sx_t, sx_r, arm_sd = info[7], info[8], info[9], info[10], info[16]
     s_f_t = np.sqrt(np.asarray(sx_t) ** 2 + np.asarray(arm_sd[0]) ** 2)
     s_f_r = np.sqrt(np.asarray(sx_r) ** 2 + np.asarray(arm_sd[1]) ** 2)
@@ -151,4 +151,6 @@ def check_hand_eye(fv: FreshViews, robot_poses: list[Transform], cam: Camera, ch
     s_r = np.sqrt(s_f_r**2 + st_r**2)
     stat = float(np.sum((d_mm / s_t) ** 2) + np.sum((d_deg / s_r) ** 2))
     p = float(chi2.sf(stat, 6))
-    return HandEyeCheck(X, d_mm, d_deg, s_t, s_r, s_f_t, s_f_r, stat, p, p < level, float(err_mm), float(err_deg))
+    return HandEyeCheck(X_fresh=X, delta_mm=d_mm, delta_deg=d_deg, sigma_mm=s_t, sigma_deg=s_r, sigma_fresh_mm=s_f_t,
+                        sigma_fresh_deg=s_f_r, chi2=stat, p_value=p, changed=p < level, robot_error_mm=float(err_mm),
+                        robot_error_deg=float(err_deg))

@@ -110,4 +110,5 @@ def fit_fresh_views(dets: list[Detection], target: Target, cam: Camera,
         keep = [i for i in range(len(used)) if i not in bad]
         views, used = [views[i] for i in keep], [used[i] for i in keep]
         poses, offsets, per_view, rms = _fit(views, [poses[i] for i in keep], cam, dof, use_offsets)
-    return FreshViews(views, poses, offsets, dof, use_offsets, rms, used, reports, origin)
+    return FreshViews(views=views, poses=poses, offsets=offsets, dof=dof, use_offsets=use_offsets, rms_fixed=rms,
+                      used=used, reports=reports, origin=origin)

@@ -137,10 +137,13 @@ def record_of_document(doc: object, where: str = "calibration.json") -> Calibrat
         names, cov = _covariance(est, where)
         hulls = [np.asarray(h, float).reshape(-1, 2) for h in (doc.get("coverage") or {}).get("view_hulls") or []]
         rms = doc.get("rms_px")
-        return CalibrationRecord(cam, str(doc.get("camera_name", "camera")), str(est.get("distortion_choice") or ""),
-                                 names, cov, hulls, float(rms) if rms is not None else float("nan"),
-                                 int(doc.get("views_used") or 0), doc.get("projection_uncertainty"),
-                                 str(doc.get("created", "")), str(doc.get("note", "")))
+        return CalibrationRecord(camera=cam, camera_name=str(doc.get("camera_name", "camera")),
+                                 distortion_choice=str(est.get("distortion_choice") or ""), parameters=names,
+                                 covariance=cov, view_hulls=hulls,
+                                 rms_px=float(rms) if rms is not None else float("nan"),
+                                 views_used=int(doc.get("views_used") or 0),
+                                 projection_uncertainty=doc.get("projection_uncertainty"),
+                                 created=str(doc.get("created", "")), note=str(doc.get("note", "")))
     except CalibrationFileError:
         raise
     except (KeyError, TypeError, ValueError) as e:

@@ -30,5 +30,6 @@ def record_of_calibration(res: CalibrationResult, camera_name: str = "camera", n
     proj = res.projection_summary()
     hulls = view_hulls(res.feature_points()) if res.edge_points else []
     summary = {k: float(v) for k, v in proj.items()} if proj and all(np.isfinite(list(proj.values()))) else None
-    return CalibrationRecord(res.camera(), camera_name, res.distortion_model, names, cov, hulls, float(res.rms),
-                             res.n_used, summary, note=note)
+    return CalibrationRecord(camera=res.camera(), camera_name=camera_name, distortion_choice=res.distortion_model,
+                             parameters=names, covariance=cov, view_hulls=hulls, rms_px=float(res.rms),
+                             views_used=res.n_used, projection_uncertainty=summary, note=note)
