@@ -127,7 +127,8 @@ def region_contour(mask: np.ndarray) -> np.ndarray:
 
 
 def _write(req: ExportRequest, cf: CalibrationFile, cam: Camera, note: str, mask: np.ndarray | None,
-           hulls: list[np.ndarray], refitted: bool) -> Path:
+           hulls: list[np.ndarray], refitted: str) -> Path:
+    """Write ``cam`` in ``req.to``; ``refitted``: the choice it was refitted into ("" if not)."""
     if req.to == "opencv":
         return write_opencv_storage(req.output, cam, note)
     if req.to == "kalibr":
@@ -143,7 +144,8 @@ def _write(req: ExportRequest, cf: CalibrationFile, cam: Camera, note: str, mask
         return write_mrcal_model(req.output, model, note)
     rec = cf.record if cf.record is not None else CalibrationRecord(cam, cf.camera_name or "camera")
     if refitted:  # the covariance was of the source's parameters, not the refit's
-        rec = CalibrationRecord(cam, rec.camera_name, view_hulls=hulls or rec.view_hulls, note=note)
+        rec = CalibrationRecord(cam, rec.camera_name, distortion_choice=refitted if refitted in DISTORTION_CHOICES
+                                else "", view_hulls=hulls or rec.view_hulls, note=note)
     elif hulls and not rec.view_hulls:
         rec = replace(rec, view_hulls=hulls)
     return write_calibration_json(req.output, replace(rec, note=note or rec.note))
@@ -188,6 +190,6 @@ def export_calibration(req: ExportRequest) -> ExportOutcome:
         if not refit.ok:
             lines.append(f"WARNING (forced): {refit.where_it_fails()}")
         note += f"\n{refit.summary()}"
-    path = _write(req, cf, cam, note, mask, hulls, refit is not None)
+    path = _write(req, cf, cam, note, mask, hulls, choice)
     lines.append(f"wrote {path} ({req.to}, {cam.model})")
     return ExportOutcome(path, refit, lines)
