@@ -333,8 +333,9 @@ def pose_with_camera(det: Detection, target: Target, camera: Camera, origin: tup
     (focal fx), where the circles are exact conics again; the pose found there by
     :func:`pose_from_circles` (grids) or :func:`pose_from_view` is turned back (R = Q^T R_v,
     t = Q^T t_v)."""
-    rays = [camera.unproject(e.points) for e in det.edges]
-    allr = np.concatenate(rays) if rays else np.zeros((0, 3))
+    # one unprojection of every edge point (the model's range is found once, not per edge), split per edge
+    allr = camera.unproject(np.concatenate([e.points for e in det.edges])) if det.edges else np.zeros((0, 3))
+    rays = np.split(allr, np.cumsum([len(e.points) for e in det.edges])[:-1]) if det.edges else []
     allr = allr[np.all(np.isfinite(allr), 1)]
     if len(allr) < 10:
         raise CircularPointError("no edge point has a ray under the calibrated camera")

@@ -13,7 +13,7 @@ from ..calibrate.result import CalibrationError
 from ..report.text import format_summary, projection_line
 from ..workflows.detection import detect_files, detection_params
 from ..workflows.intrinsic import run_intrinsic
-from ..workflows.outputs import write_camera_file
+from ..workflows.outputs import write_calibration_record, write_camera_file
 from .common import (
     EXIT_CALIB,
     EXIT_INPUT,
@@ -95,7 +95,9 @@ def run(args: argparse.Namespace) -> int:
     print(format_summary(a))
     print(projection_line(a))
     print(f"time: detection {t_detect:.2f} s ({len(paths)} images), calibration {out.seconds:.2f} s")
-    print(f"wrote {write_camera_file(a.result, args.output, args.camera_name)}")
+    yaml_path = write_camera_file(a.result, args.output, args.camera_name)
+    print(f"wrote {yaml_path}")
+    print(f"wrote {write_calibration_record(a, yaml_path, args.camera_name)}")
     if args.report:
         write_report_files(a, dets, args.report, paths)
     for line in out.cross_validation_lines:  # a disagreement or a refusal is a WARNING, not a failure

@@ -9,16 +9,18 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis.compare import camera_from_yaml, projection_difference, region_from_report
+from ..analysis.compare import projection_difference, region_from_report
 from ..errors import PascalCalibError
+from ..io.calibration_files import read_calibration_file
 from .common import EXIT_INPUT, EXIT_OK, error
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     df = sub.add_parser("diff", help="projection difference between two calibrations of one camera (after the "
                                      "implied rotation, as mrcal-show-projection-diff)")
-    df.add_argument("a", metavar="A.yaml", help="camera_calibration_parsers YAML (the reference)")
-    df.add_argument("b", metavar="B.yaml", help="camera_calibration_parsers YAML compared against A")
+    df.add_argument("a", metavar="A.yaml", help="the reference calibration: ROS camera YAML, calibration.json, "
+                                                "OpenCV FileStorage, Kalibr camchain (cam0) or mrcal .cameramodel")
+    df.add_argument("b", metavar="B.yaml", help="the calibration compared against A (any of those formats)")
     df.add_argument("--region", default="image", metavar="image|REPORT_JSON",
                     help="grid over the whole image (default) or over the observed field of a calibration "
                          "report.json (coverage.view_hulls)")
@@ -34,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
     """Projection difference of calibration B against A after the implied rotation (mrcal's
     projection_diff; :mod:`.calibrate.compare`), over the image or a report's observed field."""
     try:
-        a, b = camera_from_yaml(args.a), camera_from_yaml(args.b)
+        a, b = read_calibration_file(args.a).camera, read_calibration_file(args.b).camera
         mask = None if args.region == "image" else region_from_report(args.region).mask
         res = projection_difference(a, b, mask, args.distance, args.step)
     except PascalCalibError as e:

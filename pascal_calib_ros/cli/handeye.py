@@ -20,7 +20,7 @@ from ..session.arm_bag import read_arm_bag
 from ..targets import Target
 from ..workflows.detection import detect_files, detect_images, detection_params
 from ..workflows.hand_eye import hand_eye_frames, run_hand_eye, static_transform_command
-from ..workflows.outputs import write_camera_file
+from ..workflows.outputs import write_calibration_record, write_camera_file
 from .common import (
     EXIT_CALIB,
     EXIT_INPUT,
@@ -142,7 +142,9 @@ def run(args: argparse.Namespace) -> int:
     print(format_summary(out.assessment))
     print(hand_eye_summary(out.result))
     print(f"time: calibration {out.seconds:.2f} s")
-    print(f"wrote {write_camera_file(out.result.calibration, args.output, args.camera_name)}")
+    yaml_path = write_camera_file(out.result.calibration, args.output, args.camera_name)
+    print(f"wrote {yaml_path}")
+    print(f"wrote {write_calibration_record(out.assessment, yaml_path, args.camera_name)}")
     parent, target_frame = hand_eye_frames(args.mode, frame_id, child_id)
     he_out = Path(args.hand_eye_out) if args.hand_eye_out else Path(args.output).parent / "hand_eye.yaml"
     write_hand_eye_yaml(he_out, out.record(parent, args.camera_frame, target_frame))

@@ -9,10 +9,10 @@ from __future__ import annotations
 import argparse
 import sys
 
-from . import bag, calibrate, diff, handeye, render, studies, target
+from . import bag, calibrate, diff, export, handeye, render, studies, target, verify
 from .common import EXIT_INPUT, error
 
-COMMANDS = (calibrate, handeye, diff, render, bag, studies, target)  # each: add_parser(sub), run(args)
+COMMANDS = (calibrate, handeye, diff, export, verify, render, bag, studies, target)  # each: add_parser(sub), run(args)
 
 
 def build_parser() -> argparse.ArgumentParser:

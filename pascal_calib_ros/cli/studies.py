@@ -26,9 +26,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     e.set_defaults(func=cmd_experiment)
     s = sub.add_parser("study", help="accuracy studies against ground truth (see README)")
     s.add_argument("name", choices=["accuracy", "edge-bias", "grids", "target-shape", "lenses", "handeye", "trust",
-                                        "model-bias"])
+                                        "model-bias", "verify"])
+    s.add_argument("--sessions", type=int, default=20, help="verify: verification sessions per scenario")
     s.add_argument("--draws", type=int, default=10, help="trust: noise draws and new sessions per scenario")
-    s.add_argument("--only", default="", help="trust: only the scenarios whose name contains this text")
+    s.add_argument("--only", default="", help="trust: only the scenarios whose name contains this text; verify: "
+                                              "camera, hand-eye and/or timing (comma-separated)")
     s.add_argument("--opencv4-python", default="", help="handeye: a Python with OpenCV 4.x for calibrateHandEye")
     s.add_argument("--targets", default="ring_a4,checkerboard_a4", help="handeye: targets, comma-separated")
     s.add_argument("--arm-systematic-mm", type=float, default=0.25,
@@ -59,6 +61,14 @@ def cmd_study(args: argparse.Namespace) -> int:
         from ..studies.trust_study import trust
 
         trust(Path(args.out), draws=args.draws, views=args.views or 12, only=args.only)
+        return EXIT_OK
+    if args.name == "verify":
+        from ..studies.verify_study import StudySpec, verify_study
+
+        parts = {"camera", "hand-eye", "timing"} if not args.only else set(args.only.split(","))
+        verify_study(Path(args.out), StudySpec(sessions=args.sessions, views=args.views or 10, seed=args.seed,
+                                               camera="camera" in parts, hand_eye="hand-eye" in parts,
+                                               timing="timing" in parts))
         return EXIT_OK
     if args.name == "model-bias":
         from ..studies.model_bias_study import model_bias_study

@@ -18,6 +18,8 @@ HAND_EYE.yaml::
     rotation: [qx, qy, qz, qw]
     translation_std_mm: [sx, sy, sz]       # along the parent frame's axes
     rotation_std_deg: [rx, ry, rz]         # small rotations about the parent frame's axes
+    translation_std_intrinsics_mm: [..]    # of those sigmas, the held intrinsics' share (the same error moves
+    rotation_std_intrinsics_deg: [..]      # every X estimated with these intrinsics: verify leaves it out)
     target_frame: base_link                 # where the target was estimated (eye_to_hand: the tool)
     target_translation: [x, y, z]           # target origin (the target YAML's frame) in target_frame
     target_rotation: [qx, qy, qz, qw]
@@ -131,6 +133,10 @@ class HandEyeRecord:
     target: Transform
     views_used: int
     rms_px: float
+    # of the sigmas, the held intrinsics' share: the same intrinsics error moves every X estimated with these
+    # intrinsics alike (pascal-calib verify leaves it out of the comparison)
+    translation_std_intrinsics_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rotation_std_intrinsics_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def document(self) -> dict[str, Any]:
         """The YAML mapping."""
@@ -142,6 +148,8 @@ class HandEyeRecord:
             "rotation": _floats(self.X.quat),
             "translation_std_mm": _floats(self.translation_std_mm),
             "rotation_std_deg": _floats(self.rotation_std_deg),
+            "translation_std_intrinsics_mm": _floats(self.translation_std_intrinsics_mm),
+            "rotation_std_intrinsics_deg": _floats(self.rotation_std_intrinsics_deg),
             "target_frame": self.target_frame,
             "target_translation": _floats(self.target.translation),
             "target_rotation": _floats(self.target.quat),

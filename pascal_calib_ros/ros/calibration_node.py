@@ -33,6 +33,7 @@ from sensor_msgs.srv import SetCameraInfo
 from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
+from ..analysis.verify import Reference
 from ..calibrate.handeye import HandEyeOptions
 from ..calibrate.options import CalibrationOptions
 from ..calibrate.problem import SHAPE_CHOICES
@@ -40,6 +41,7 @@ from ..calibrate.result import CalibrationError, CalibrationResult
 from ..detect.detection import Detection
 from ..detect.target_detector import detect_target
 from ..errors import PascalCalibError
+from ..io.calibration_files import read_calibration_file
 from ..io.hand_eye_yaml import write_hand_eye_yaml
 from ..io.image_msgs import ImageConversionError, compressed_to_grey, grey_to_image_fields, image_to_grey
 from ..io.images import read_grey
@@ -53,9 +55,11 @@ from ..workflows.outputs import (
     calibration_file_path,
     camera_info_data,
     hand_eye_file_path,
+    write_calibration_record,
     write_camera_file,
     write_session_files,
 )
+from ..workflows.verify import hand_eye_reference_of_result, reference_of_file, reference_of_result, verify_views
 from .commit import commit_camera_info
 from .conversions import camera_info_msg, transform_msg
 from .params import PARAMS, ParameterError, declare_parameters, validate_parameters
@@ -90,6 +94,8 @@ class CalibrationNode(Node):
         self.calibrating = threading.Lock()
         self.auto_done_at = -1
         self.hand_eye_line = ""
+        self.hand_eye_result: Any = None  # (HandEyeResult, parent frame, camera frame) of the last ~/calibrate
+        self.verify_line = ""
         self.robot: RobotPoseInput | None = None
         self._pending: Any = None
         self._pending_cv = threading.Condition()
@@ -121,6 +127,7 @@ class CalibrationNode(Node):
         self.create_service(Trigger, "~/reset", self._srv_reset, callback_group=services)
         self.create_service(Trigger, "~/commit", self._srv_commit, callback_group=services)
         self.create_service(Trigger, "~/capture", self._srv_capture, callback_group=services)
+        self.create_service(Trigger, "~/verify", self._srv_verify, callback_group=services)
         self.set_info_client = self.create_client(SetCameraInfo, self.p("set_camera_info_service"),
                                                   callback_group=services)
         self._image_group = MutuallyExclusiveCallbackGroup()
@@ -312,6 +319,7 @@ class CalibrationNode(Node):
             kv.update(self.robot.status(with_pose))
         if self.p("hand_eye"):
             kv["hand_eye"] = self.hand_eye_line
+        kv["verify"] = self.verify_line
         st.values = [KeyValue(key=k, value=str(v)) for k, v in kv.items()]
         self.pub_status.publish(DiagnosticArray(header=self._header(), status=[st]))
 
@@ -391,6 +399,7 @@ class CalibrationNode(Node):
         except OSError as e:
             return refuse(f"cannot write {he_path}: {e}")
         self.hand_eye_line, summary = out.answer(parent, cam_frame, len(snap.views), str(he_path), str(path))
+        self.hand_eye_result = (out.result, parent, cam_frame)
         self._publish_camera(out.assessment.result)
         self.pub_hand_eye.publish(transform_msg(out.result.hand_eye, parent, cam_frame,
                                                 self.get_clock().now().to_msg()))
@@ -408,6 +417,7 @@ class CalibrationNode(Node):
         name, out_dir = str(self.p("camera_name")), str(self.p("output_dir"))
         path = write_camera_file(a.result, calibration_file_path(name, out_dir, str(self.p("calibration_file"))),
                                  name)
+        write_calibration_record(a, path, name)  # CAM.calibration.json: what ~/verify and export need
         if out_dir:
             frames = Path(out_dir) / "frames"
             try:
@@ -434,6 +444,47 @@ class CalibrationNode(Node):
         self._log(f"capture: {resp.message}", resp.success)
         self.publish_status()
         return resp
+
+    def _srv_verify(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
+        resp.success, resp.message = self.run_verification()
+        self._log(f"verify: {resp.message}", resp.success)
+        self.publish_status()
+        return resp
+
+    def run_verification(self) -> tuple[bool, str]:
+        """The views collected since the last ~/reset against the published calibration (and the
+        hand-eye result): success when the test could run; the answer starts with the verdict."""
+        snap = self.session.snapshot()
+        try:
+            reference = self._verify_reference()
+        except PascalCalibError as e:
+            return False, f"nothing to verify against: {e}"
+        robot, he_ref = None, None
+        if self.hand_eye_result is not None:
+            he, parent, cam_frame = self.hand_eye_result
+            robot = list(snap.robot_poses)
+            he_ref = hand_eye_reference_of_result(he, parent, cam_frame, float(self.p("arm_accuracy_mm")),
+                                                  float(self.p("arm_accuracy_length")))
+        try:
+            _, line = verify_views(snap.views, self.target, reference, robot, he_ref)
+        except PascalCalibError as e:
+            return False, f"the views cannot test the calibration: {e}"
+        except Exception as e:  # never let a numerical failure take the node down
+            self.get_logger().error(f"verification crashed: {type(e).__name__}: {e}")
+            return False, f"verification failed: {type(e).__name__}: {e}"
+        self.verify_line = line
+        return True, line
+
+    def _verify_reference(self) -> Reference:
+        """The calibration under test: this session's last result, else the calibration file (with its
+        ``.calibration.json`` beside it for the covariance)."""
+        if self.result is not None:
+            return reference_of_result(self.result)
+        name = str(self.p("camera_name"))
+        path = calibration_file_path(name, str(self.p("output_dir")), str(self.p("calibration_file")))
+        if not path.exists():
+            raise PascalCalibError(f"no calibration in this session and no {path}: call ~/calibrate first")
+        return reference_of_file(read_calibration_file(path))
 
     def _srv_reset(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
         n = self.session.clear()

@@ -59,4 +59,10 @@ CALIBRATION_NODE_INTERFACES = (
               'type: an error in the log and `~/status`)'),
     Interface('~/commit', 'srv', 'std_srvs/Trigger',
               "send the last good result to the driver's `sensor_msgs/SetCameraInfo` and report its answer"),
+    Interface('~/verify', 'srv', 'std_srvs/Trigger',
+              'test the views collected since the last `~/reset` against the published calibration (this '
+              "session's last result, else `calibration_file` with its `.calibration.json`) and, after a hand-eye "
+              "calibration, its transform: answers `verdict: HOLDS` or `verdict: CHANGED: <what> (p = ..); moved: fx "
+              "+1.3 (+7.2 sigma)`, the views used, the projection shift (px, as `pascal-calib diff`) and how far X "
+              'moved; the last answer in `~/status` (`verify`); see Export and verify'),
 )

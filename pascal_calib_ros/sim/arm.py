@@ -66,6 +66,8 @@ class ArmSpec:
     sensor_noise: float = 1.5
     size_range: tuple[float, float] = (0.35, 0.6)
     tilt_range: tuple[float, float] = (15.0, 45.0)
+    # the seed of the systematic error field (None: ``seed``); one arm over several sessions keeps its field
+    field_seed: int | None = None
 
     def camera(self) -> Camera:
         return SessionSpec(width=self.width, height=self.height, focal=self.focal, k1=self.k1, lens=self.lens,
@@ -96,7 +98,8 @@ def arm_poses(spec: ArmSpec, pose_target: Target, hand_eye: Transform | None = N
     cam = spec.camera()
     rng = np.random.default_rng(spec.seed)
     poses = random_poses(pose_target, cam, spec.views, rng, spec.tilt_range, spec.size_range)
-    field_rng = np.random.default_rng([spec.seed, 12])  # a stream of its own: the poses do not depend on it
+    # a stream of its own: the poses do not depend on it
+    field_rng = np.random.default_rng([spec.seed if spec.field_seed is None else spec.field_seed, 12])
     kdir = field_rng.normal(size=(3, 3))
     kvec = 2 * np.pi / spec.systematic_wavelength * kdir / np.linalg.norm(kdir, axis=1, keepdims=True)
     phase = field_rng.uniform(0, 2 * np.pi, 3)

@@ -42,7 +42,9 @@ class HandEyeOutcome:
         return HandEyeRecord(mode=he.mode, parent_frame=parent_frame, child_frame=camera_frame, X=he.hand_eye,
                              translation_std_mm=_three(he.translation_std_mm),
                              rotation_std_deg=_three(he.rotation_std_deg), target_frame=target_frame,
-                             target=he.target, views_used=int(he.views_used), rms_px=float(he.rms_px))
+                             target=he.target, views_used=int(he.views_used), rms_px=float(he.rms_px),
+                             translation_std_intrinsics_mm=_three(he.intrinsics_share_mm),
+                             rotation_std_intrinsics_deg=_three(he.intrinsics_share_deg))
 
     def answer(self, parent: str, camera_frame: str, n_views: int, hand_eye_yaml: str, camera_yaml: str
                ) -> tuple[str, str]:

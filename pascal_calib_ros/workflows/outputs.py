@@ -14,9 +14,11 @@ from ..analysis.assessment import Assessment
 from ..calibrate.result import CalibrationResult
 from ..detect.detection import Detection
 from ..geometry.camera import rectified_projection
+from ..io.calibration_json import sidecar_path, write_calibration_json
 from ..io.camera_yaml import CameraInfoData, write_camera_yaml
 from ..report.pages import ReportFiles, write_report
 from ..report.text import summary_line
+from .calibration_record import record_of_calibration
 
 ImageSource = Callable[[str], "np.ndarray | None"]  # a view's name -> its grey image (None: not at hand)
 
@@ -67,3 +69,9 @@ def write_session_files(a: Assessment, dets: list[Detection], out_dir: str | Pat
     out.mkdir(parents=True, exist_ok=True)
     (out / "calibration.json").write_text(json.dumps(calibration_json(a.result), indent=1, default=float))
     return write_report(a, dets, out, images=images, hand_eye=hand_eye)
+
+
+def write_calibration_record(a: Assessment, camera_yaml: str | Path, camera_name: str) -> Path:
+    """``CAM.calibration.json`` beside the camera YAML (:mod:`..io.calibration_json`): the covariance
+    ``pascal-calib verify`` tests against and the observed field ``export --region`` refits over."""
+    return write_calibration_json(sidecar_path(camera_yaml), record_of_calibration(a, camera_name))

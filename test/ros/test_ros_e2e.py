@@ -158,6 +158,11 @@ def test_folder_session_calibrate_commit_reset(tmp_path: Path, session: Path) ->
         report = json.loads((tmp_path / "out" / "report.json").read_text())
         assert report["residuals"]["worst_views"] and set(report["residuals"]["worst_views"]) <= frames
         assert report["residuals"]["model_bias"]["detected"] is False
+        assert (tmp_path / "out" / "e2e_cam.calibration.json").exists()  # the covariance ~/verify and export use
+        # ~/verify: the views of the session against its own result hold
+        r = client.call_trigger("/pascal_calib/verify", timeout=120.0)
+        assert r.success and r.message.startswith("verdict: HOLDS") and "projection shift" in r.message, r.message
+        assert client.spin_until(lambda: latest_status(status).get("verify", "").startswith("verdict: HOLDS"), 10)
         # ~/commit: driver missing, then accepting, then refusing
         r = client.call_trigger("/pascal_calib/commit")
         assert not r.success and "not available" in r.message
@@ -181,6 +186,8 @@ def test_folder_session_calibrate_commit_reset(tmp_path: Path, session: Path) ->
         assert client.spin_until(lambda: latest_status(status).get("views_accepted") == "0", 5)
         r = client.call_trigger("/pascal_calib/calibrate")
         assert not r.success  # too few views again, and the last good result stays published
+        r = client.call_trigger("/pascal_calib/verify")
+        assert not r.success and "cannot test" in r.message, r.message
         late = camera_info_subscription(client)
         assert client.spin_until(lambda: bool(late), 10)
         assert np.allclose(late[-1].k, info[-1].k)

@@ -168,7 +168,7 @@ def chain_disagreement(M: list[Transform], X: Transform, Y: Transform, C: list[T
     return np.array(mm), np.array(deg)
 
 
-def _complete_ring_poses(M: list[Transform], X: Transform, Y: Transform, C: list[Transform]) -> list[Transform]:
+def complete_ring_poses(M: list[Transform], X: Transform, Y: Transform, C: list[Transform]) -> list[Transform]:
     """Each view's rotation about the ring's axis from the chain: the predicted pose
     X^-1 M^-1 Y turned minimally so that its z axis is the measured normal; the measured centre."""
     out = []

@@ -68,7 +68,7 @@ def target_symmetries(target: Target, origin: tuple[float, float]) -> list[Trans
     return out
 
 
-def _relabelled(view: ViewData, T: Transform) -> ViewData:
+def relabelled(view: ViewData, T: Transform) -> ViewData:
     """The view's observations under the labelling turned by the symmetry T (centres -> T^-1)."""
     Ti = T.inverse()
 
@@ -145,7 +145,7 @@ def label_consistently(M: list[Transform], C: list[Transform], views: list[ViewD
         if T.angle_deg() > 1.0:
             n_turned += 1
             C[i] = C[i] @ T
-            views[i] = _relabelled(views[i], T)
+            views[i] = relabelled(views[i], T)
     if n_turned:
         warnings.append(f"{n_turned} view(s) were labelled turned by a symmetry of the target; relabelled "
                         "consistently with the robot chain")

@@ -74,6 +74,10 @@ class HandEyeResult:
     arm_share_deg: np.ndarray = field(default_factory=lambda: np.zeros(3))
     arm_accuracy_mm: float = 0.0  # the prior used (HandEyeOptions.arm_accuracy_mm / _length)
     arm_accuracy_length: float = 0.0
+    # of translation_std_mm / rotation_std_deg: the held intrinsics' share (their error moves X alike in every later
+    # estimate with the same intrinsics: pascal-calib verify takes it out of the comparison)
+    intrinsics_share_mm: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    intrinsics_share_deg: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     @property
     def parent_frame_role(self) -> str:

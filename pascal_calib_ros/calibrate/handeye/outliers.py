@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...geometry.transform import Transform
-from .closed_form import _complete_ring_poses, chain_disagreement
+from .closed_form import chain_disagreement, complete_ring_poses
 from .options import MIN_VIEWS, HandEyeError, HandEyeOptions
 
 Solver = Callable[[list[int]], tuple[Transform, Transform, list[Transform]]]  # views -> X, Y, their poses
@@ -43,7 +43,7 @@ def drop_disagreeing_views(M: list[Transform], C: list[Transform], solve: Solver
             mo, do = chain_disagreement([M[i] for i in others], Xo, Yo, Co, he.mode)
             lim_mm = max(he.outlier_mm, 8 * float(np.median(mo)))
             lim_deg = max(he.outlier_deg, 8 * float(np.median(do)))
-            cw = _complete_ring_poses([M[a]], Xo, Yo, [C[a]]) if axisymmetric else [C[a]]
+            cw = complete_ring_poses([M[a]], Xo, Yo, [C[a]]) if axisymmetric else [C[a]]
             mw, dw = chain_disagreement([M[a]], Xo, Yo, cw, he.mode)
             score = max(mw[0] / lim_mm, dw[0] / lim_deg)
             if worst is None or score > worst[0]:

@@ -69,10 +69,10 @@ from ..pipeline import DEFAULT_OPTIONS, calibrate
 from ..result import CalibrationError, CalibrationResult, ViewReport
 from .chain_refinement import ChainSolution, ChainStart, jackknife_spread, refine_chain
 from .closed_form import (
-    _complete_ring_poses,
     chain_disagreement,
     chain_pose,
     check_robot_poses,
+    complete_ring_poses,
     hand_eye_closed_form,
     ring_closed_form,
 )
@@ -114,7 +114,7 @@ def _closed_form_solver(M: list[Transform], C: list[Transform], axisymmetric: bo
         if axisymmetric:
             X, Y = ring_closed_form(Ms, np.array([C[i].translation for i in sel]),
                                     np.array([C[i].R[:, 2] for i in sel]))
-            return X, Y, _complete_ring_poses(Ms, X, Y, [C[i] for i in sel])
+            return X, Y, complete_ring_poses(Ms, X, Y, [C[i] for i in sel])
         X, Y = hand_eye_closed_form(Ms, [C[i] for i in sel])
         return X, Y, [C[i] for i in sel]
 
@@ -209,4 +209,5 @@ def _result(cal: CalibrationResult, sol: ChainSolution, views: list[ViewData], r
         robot_error_mm=sol.robot_error_mm, robot_error_deg=sol.robot_error_deg, per_view=per_view,
         warnings=warnings, closed_form=X0, target_std_mm=spread.y_mm, target_std_deg=spread.y_deg,
         start_K=cal.K.copy(), arm_share_mm=sol.arm_share.x_mm, arm_share_deg=sol.arm_share.x_deg,
-        arm_accuracy_mm=he.arm_accuracy_mm, arm_accuracy_length=he.arm_accuracy_length)
+        arm_accuracy_mm=he.arm_accuracy_mm, arm_accuracy_length=he.arm_accuracy_length,
+        intrinsics_share_mm=sol.intrinsics_share.x_mm, intrinsics_share_deg=sol.intrinsics_share.x_deg)

@@ -21,7 +21,7 @@ from ..problem import Problem
 from ..result import ViewReport
 
 
-def _camera_pose(det: Detection, target: Target, cam: Camera, origin: tuple[float, float]) -> Transform:
+def camera_pose(det: Detection, target: Target, cam: Camera, origin: tuple[float, float]) -> Transform:
     """Target (local frame) -> camera for one view with the calibrated camera."""
     if det.edges:
         p = pose_with_camera(det, target, cam, origin)
@@ -76,7 +76,7 @@ def posed_views(dets: list[Detection], reports: list[ViewReport], target: Target
             continue
         vd = observations(dets[k], target, origin, options)
         try:
-            C.append(_polished_pose(vd, _camera_pose(dets[k], target, cam, origin), cam, options,
+            C.append(_polished_pose(vd, camera_pose(dets[k], target, cam, origin), cam, options,
                                     5 if axisymmetric else 6))
         except (CircularPointError, np.linalg.LinAlgError, ValueError) as e:
             rep.used, rep.reason = False, f"pose with the calibrated camera: {e}"

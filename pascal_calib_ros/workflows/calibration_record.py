@@ -1,0 +1,37 @@
+"""The :class:`~..io.calibration_json.CalibrationRecord` of a calibration result: the camera, the
+marginal covariance of the estimated intrinsics and the observed field, for ``calibration.json``."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..analysis.assessment import Assessment
+from ..calibrate.result import CalibrationResult
+from ..geometry.image_field import view_hulls
+from ..io.calibration_json import CalibrationRecord
+
+
+def intrinsic_covariance(res: CalibrationResult) -> tuple[tuple[str, ...], np.ndarray | None]:
+    """(names, covariance) of the estimated intrinsics (fx fy cx cy [skew] and the estimated
+    coefficients): the leading block of the refinement's sandwich covariance, which is the
+    intrinsics' marginal covariance with every view's pose and edge offset estimated too. Without a
+    refinement (zhang, --no-refine) the names of ``res.std`` and no covariance."""
+    ref = res.refinement
+    if ref is None or ref.covariance is None or ref.problem is None:
+        return tuple(res.std), None
+    prob = ref.problem
+    names = tuple(prob.names[i] for i in prob.free)
+    n = len(names)
+    return names, np.asarray(ref.covariance[:n, :n], float).copy()
+
+
+def record_of_calibration(a: Assessment, camera_name: str = "camera", note: str = "") -> CalibrationRecord:
+    """What ``calibration.json`` keeps of an assessed calibration (module docstring)."""
+    res = a.result
+    names, cov = intrinsic_covariance(res)
+    proj = a.projection_summary()
+    hulls = view_hulls(res.feature_points()) if res.edge_points else []
+    summary = {k: float(v) for k, v in proj.items()} if proj and all(np.isfinite(list(proj.values()))) else None
+    return CalibrationRecord(camera=res.camera(), camera_name=camera_name, distortion_choice=res.distortion_model,
+                             parameters=names, covariance=cov, view_hulls=hulls, rms_px=float(res.rms),
+                             views_used=res.n_used, projection_uncertainty=summary, note=note)
