@@ -167,8 +167,11 @@ def _add_views_without_start(res: RefineResult, idx: list[int], dets: list[Detec
         new_idx.append(k)
     if not new_idx:
         return res, idx
-    idx = idx + new_idx
-    res = _refine(res.views + new_views, res.K, res.D, [*res.poses, *new_poses], dof, opt)
+    # in session order, as the result's views are reported (the report pairs them by position)
+    order = np.argsort(idx + new_idx, kind="stable")
+    views, poses = res.views + new_views, [*res.poses, *new_poses]
+    idx = [(idx + new_idx)[i] for i in order]
+    res = _refine([views[i] for i in order], res.K, res.D, [poses[i] for i in order], dof, opt)
     return _drop_outlier_views(res, idx, reports, opt, dof)
 
 
