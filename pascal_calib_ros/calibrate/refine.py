@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import cv2
 import numpy as np
@@ -520,6 +520,21 @@ def _camera(intr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return K, intr[5:].copy()
 
 
+class LeastSquaresProblem(Protocol):
+    """What :func:`levenberg_marquardt` and the sandwich covariance need of a problem:
+    :class:`Problem`, :class:`ChainProblem`, :class:`~.rig_problem.RigProblem`."""
+
+    def evaluate(self, x: np.ndarray, intr0: np.ndarray, jac: bool = True
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+
+    def robust_weights(self, f: np.ndarray, loss_scale: float) -> np.ndarray: ...
+
+    def robust_cost(self, f: np.ndarray, loss_scale: float) -> float: ...
+
+    def normal_equations(self, f: np.ndarray, Jg: np.ndarray, Jv: np.ndarray, w: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray]: ...
+
+
 @dataclass
 class LMResult:
     x: np.ndarray
@@ -533,7 +548,7 @@ class LMResult:
     message: str
 
 
-def levenberg_marquardt(prob: Problem, x0: np.ndarray, intr0: np.ndarray, loss_scale: float,
+def levenberg_marquardt(prob: LeastSquaresProblem, x0: np.ndarray, intr0: np.ndarray, loss_scale: float,
                         max_iter: int = 60, tol: float = 1e-10) -> LMResult:
     """Levenberg-Marquardt with iteratively reweighted soft-L1 loss rho(z) = 2 (sqrt(1 + z) - 1),
     z = (r / f)^2, weights 1 / sqrt(1 + z); normal equations from :meth:`Problem.normal_equations`

@@ -39,7 +39,7 @@ EDGE_MAX_LAG = 10
 
 if TYPE_CHECKING:
     from ..geometry.camera import Camera
-    from .refine import Problem, ViewData
+    from .refine import LeastSquaresProblem, Problem, ViewData
 
 
 def lag_factor(chunks: list[np.ndarray], circular: bool, max_lag: int = 40) -> float:
@@ -144,7 +144,7 @@ def row_variances(prob: Problem, views: list[ViewData], f: np.ndarray, w: np.nda
     return var
 
 
-def sandwich_covariance(prob: Problem, A: np.ndarray, f: np.ndarray, Jg: np.ndarray, Jv: np.ndarray,
+def sandwich_covariance(prob: LeastSquaresProblem, A: np.ndarray, f: np.ndarray, Jg: np.ndarray, Jv: np.ndarray,
                         w: np.ndarray, var: np.ndarray) -> np.ndarray:
     """A^-1 (J^T W diag(var) W J) A^-1 over all parameters (module docstring); rows beyond
     ``len(var)`` (e.g. a robot chain's, already in units of their sigma) count with variance 1."""
