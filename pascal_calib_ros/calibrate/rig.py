@@ -260,6 +260,9 @@ def calibrate_rig(dets: list[list[Detection]], target: Target, names: list[str],
     opt = options.calibration
     n_cam, n_shots = len(dets), len(dets[0])
     shot_names = shot_names or [d.name or f"shot{s}" for s, d in enumerate(dets[0])]
+    # refuse a rig that no shot connects before calibrating anything
+    check_connected({(c, s): Transform.identity() for c in range(n_cam) for s in range(n_shots) if dets[c][s].ok},
+                    names)
     own = _own_calibrations(dets, target, opt, names)
     sizes = {(r.width, r.height) for r in own}
     origin = target.circles[0].center if target.circles else (0.0, 0.0)
