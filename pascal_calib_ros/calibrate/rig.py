@@ -62,6 +62,10 @@ class RigOptions:
     outlier_factor: float = 4.0  # a view whose joint-fit RMS exceeds this times the median is left out
     relabel: bool = True  # False: views taken as labelled and all kept (comparison only)
     max_iter: int = 100
+    # edge points per view in the joint fit (each camera's own calibration, only its start, keeps the
+    # calibration options' budget): on 800x600 ring grids 3000 (about 20 per ring edge) against 700 gives
+    # sigmas about 25 % smaller for about 15 % more time; more points change nothing further
+    points_per_view: int = 3000
 
 
 @dataclass
@@ -266,7 +270,8 @@ def calibrate_rig(dets: list[list[Detection]], target: Target, names: list[str],
     own = _own_calibrations(dets, target, opt, names)
     sizes = {(r.width, r.height) for r in own}
     origin = target.circles[0].center if target.circles else (0.0, 0.0)
-    views, posed, reasons = _posed_views(dets, own, target, opt, origin)
+    views, posed, reasons = _posed_views(dets, own, target, replace(opt, max_points_per_view=options.points_per_view),
+                                         origin)
     start = rig_start(posed, names, label_moves(target, origin), options.label_tolerance_deg,
                       options.label_tolerance_rel, options.relabel)
     reasons.update(start.dropped)
