@@ -328,7 +328,7 @@ def cmd_stereo(args: argparse.Namespace) -> int:
           (f"; without a partner: {', '.join(pairing.unmatched)}" if pairing.unmatched else ""))
     print("\n".join(outcome.lines))
     if args.report:
-        files = write_reports(outcome.rig, dets, pairing, args.report)
+        files = write_reports(outcome.rig, dets, pairing, args.report, outcome, target)
         print("wrote " + ", ".join(str(f) for f in files))
     return EXIT_OK
 
@@ -371,7 +371,8 @@ def _rig_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--gamma", type=float, default=1.0, help="linearise with this display gamma before edges")
     p.add_argument("--max-blur", type=float, default=4.0, help="reject views whose edges are wider (px)")
     p.add_argument("--min-views", type=int, default=3, help="per camera")
-    p.add_argument("--report", metavar="DIR", help="write each camera's report into DIR/<camera>/")
+    p.add_argument("--report", metavar="DIR", help="write each camera's report into DIR/<camera>/ (stereo: and the "
+                                                   "pair's page DIR/stereo.pdf)")
 
 
 def cmd_render(args: argparse.Namespace) -> int:

@@ -71,6 +71,7 @@ def test_stereo_command_writes_the_pair(tmp_path: Path, capsys: pytest.CaptureFi
     assert (left.camera_name, right.camera_name) == ("head/left", "head/right")
     assert right.P[0, 3] < 0 and left.P[0, 3] == 0
     assert (out / "report" / "left" / "report.pdf").is_file() and (out / "report" / "right" / "report.json").is_file()
+    assert (out / "report" / "stereo.pdf").is_file() and (out / "report" / "stereo.png").is_file()
     # bad input: exit 2 and nothing written
     bad = main(["stereo", "--target", "ring_grid_a4", "--left", str(tmp_path / "none"), "--right",
                 str(tmp_path / "in" / "right"), "-o", str(tmp_path / "out2")])

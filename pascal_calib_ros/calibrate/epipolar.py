@@ -46,17 +46,20 @@ def _tangent_rows(points: list[np.ndarray]) -> np.ndarray:
     return np.array([horizontal_tangent_rows(c) if g else np.full(2, np.nan) for c, g in zip(C, ok, strict=True)])
 
 
-def epipolar_residuals(rig: RigResult, rect: StereoRectification, dets: list[list[Detection]], target: Target,
-                       left: int = 0, right: int = 1, min_points: int = 8) -> np.ndarray:
+def epipolar_samples(rig: RigResult, rect: StereoRectification, dets: list[list[Detection]], target: Target,
+                     left: int = 0, right: int = 1, min_points: int = 8) -> tuple[np.ndarray, np.ndarray]:
     """Row differences (px, left - right; columns for a vertical pair) of every circle tangent
-    and checkerboard corner seen by both cameras in the shots both used (module docstring);
-    ``dets[c][s]`` the detections the rig was calibrated from (all their edge points are used)."""
+    and checkerboard corner seen by both cameras in the shots both used (module docstring), and
+    where each was seen in the left camera's raw image ((N, 2): the circle's mean edge point or
+    the corner); ``dets[c][s]`` the detections the rig was calibrated from (all their edge points
+    are used)."""
     cams = [rig.cameras[left].camera(), rig.cameras[right].camera()]
     Rs, Ps = (rect.R1, rect.R2), (rect.P1, rect.P2)
     swap = np.array([[0.0, 1.0], [1.0, 0.0]]) if rect.vertical else np.eye(2)
     origin = np.asarray(target.circles[0].center if target.circles else (0.0, 0.0), float)
     board = target.checkerboard
     out: list[np.ndarray] = []
+    where: list[np.ndarray] = []
     for s in np.flatnonzero(rig.used[left] & rig.used[right]):
         la, lb = rig.start.labels[(left, int(s))], rig.start.labels[(right, int(s))]
         da, db = dets[left][s], dets[right][s]
@@ -68,7 +71,10 @@ def epipolar_residuals(rig: RigResult, rect: StereoRectification, dets: list[lis
         if any(good):
             d = _tangent_rows([a for a, g in zip(pa, good, strict=True) if g]) - \
                 _tangent_rows([b for b, g in zip(pb, good, strict=True) if g])
-            out.append(d[np.all(np.isfinite(d), 1)].ravel())
+            uv = np.array([ca[k].mean(0) for k, g in zip(common, good, strict=True) if g])
+            ok = np.all(np.isfinite(d), 1)
+            out.append(d[ok].ravel())
+            where.append(np.repeat(uv[ok], 2, axis=0))
         if board is not None and da.corners is not None and db.corners is not None:
             # corners in target order; a symmetric board's relabelling maps corner positions
             obj = np.c_[board.corner_points() - origin, np.zeros(len(board.corner_points()))]
@@ -80,8 +86,18 @@ def epipolar_residuals(rig: RigResult, rect: StereoRectification, dets: list[lis
                 qa = rectified_pixels(cams[0], Rs[0], Ps[0], np.asarray(da.corners)[ia]) @ swap
                 qb = rectified_pixels(cams[1], Rs[1], Ps[1], np.asarray(db.corners)[ib]) @ swap
                 d = qa[:, 1] - qb[:, 1]
-                out.append(d[np.isfinite(d)])
-    return np.concatenate(out) if out else np.zeros(0)
+                ok = np.isfinite(d)
+                out.append(d[ok])
+                where.append(np.asarray(da.corners)[ia][ok])
+    if not out:
+        return np.zeros((0, 2)), np.zeros(0)
+    return np.concatenate(where), np.concatenate(out)
+
+
+def epipolar_residuals(rig: RigResult, rect: StereoRectification, dets: list[list[Detection]], target: Target,
+                       left: int = 0, right: int = 1) -> np.ndarray:
+    """The row differences of :func:`epipolar_samples` (px)."""
+    return epipolar_samples(rig, rect, dets, target, left, right)[1]
 
 
 def epipolar_rms(rig: RigResult, rect: StereoRectification, dets: list[list[Detection]], target: Target,

@@ -300,7 +300,7 @@ def calibrate_rig(dets: list[list[Detection]], target: Target, names: list[str],
         if n_shared < 3:
             warnings.append(f"{names[c]} shares only {n_shared} shot(s) with the other cameras: its pose rests on "
                             "few shots; take more shots that both see")
-    return _result(fit, dets, own, names, shot_names, n_shots, reasons, start, relabelled, warnings)
+    return _result(fit, own, names, shot_names, n_shots, reasons, start, relabelled, warnings)
 
 
 def _without_outliers(fit: _Fit, views: dict[Key, ViewData], reasons: dict[Key, str],
@@ -423,7 +423,7 @@ def _projection(fit: _Fit, c: int, cam: Camera, cov: np.ndarray) -> ProjectionUn
     return projection_uncertainty(camera_of, view_poses_of, x, cov, cam.width, cam.height, distance)
 
 
-def _result(fit: _Fit, dets: list[list[Detection]], own: list[CalibrationResult], names: list[str],
+def _result(fit: _Fit, own: list[CalibrationResult], names: list[str],
             shot_names: list[str], n_shots: int, reasons: dict[Key, str], start: RigStart,
             relabelled: int, warnings: list[str]) -> RigResult:
     prob = fit.prob
@@ -447,7 +447,6 @@ def _result(fit: _Fit, dets: list[list[Detection]], own: list[CalibrationResult]
     rms = float(np.sqrt(np.mean(er * er))) if len(er) else float(np.mean([r.rms for r in cams]))
     if not fit.sol.success:
         warnings.append(f"the joint refinement stopped early: {fit.sol.message}")
-    del dets
     return RigResult(names, cams, own, E, ext_sd, pose_sd, shot_names, shot_poses, used,
                      {k: v for k, v in reasons.items() if not used[k]}, rms, warnings, start, relabelled,
                      fit.sol.x, prob, fit.intr0, cov)

@@ -60,17 +60,23 @@ def _dump(path: Path, header: str, doc: dict[str, Any]) -> Path:
     return path
 
 
+def pair_camera_infos(left: Camera, right: Camera, rect: StereoRectification, name: str = "narrow_stereo"
+                      ) -> tuple[CameraInfoData, CameraInfoData]:
+    """The two CameraInfo contents of a rectified pair: K, D of each camera, R = R1 / R2,
+    P = P1 / P2, names ``name/left`` and ``name/right``."""
+    return (CameraInfoData(left.width, left.height, f"{name}/left", left.K, np.asarray(left.D, float), left.model,
+                           rect.R1, rect.P1),
+            CameraInfoData(right.width, right.height, f"{name}/right", right.K, np.asarray(right.D, float),
+                           right.model, rect.R2, rect.P2))
+
+
 def write_pair_yamls(out_dir: str | Path, left: Camera, right: Camera, rect: StereoRectification,
                      name: str = "narrow_stereo", files: tuple[str, str] = ("left.yaml", "right.yaml")
                      ) -> tuple[Path, Path]:
     """``left.yaml`` and ``right.yaml`` (module docstring); camera names ``name/left``, ``name/right``."""
     out = Path(out_dir)
-    paths = []
-    for cam, side, R, P, fn in ((left, "left", rect.R1, rect.P1, files[0]),
-                                (right, "right", rect.R2, rect.P2, files[1])):
-        info = CameraInfoData(cam.width, cam.height, f"{name}/{side}", cam.K, np.asarray(cam.D, float), cam.model, R, P)
-        paths.append(write_camera_yaml(out / fn, info))
-    return paths[0], paths[1]
+    infos = pair_camera_infos(left, right, rect, name)
+    return write_camera_yaml(out / files[0], infos[0]), write_camera_yaml(out / files[1], infos[1])
 
 
 @dataclass(frozen=True)

@@ -35,6 +35,7 @@ from ..io.images import ImageReadError, read_grey
 from ..io.stereo_yaml import (
     RigCameraData,
     StereoData,
+    pair_camera_infos,
     static_transform_line,
     write_pair_yamls,
     write_rig_yaml,
@@ -152,8 +153,15 @@ class StereoOutcome:
     rig: RigResult
     rectification: StereoRectification
     epipolar_rms: float
+    stereo: StereoData  # what stereo.yaml holds
     files: list[Path]
     lines: list[str]
+
+    def camera_infos(self) -> tuple[CameraInfoData, CameraInfoData]:
+        """The left and right CameraInfo contents (K, D, R = R1 / R2, P = P1 / P2), as written to
+        left.yaml and right.yaml: what a node publishes on left/camera_info and right/camera_info."""
+        return pair_camera_infos(self.rig.cameras[0].camera(), self.rig.cameras[1].camera(), self.rectification,
+                                 self.stereo.left_name.rsplit("/", 1)[0])
 
 
 def _shot_lines(rig: RigResult) -> list[str]:
@@ -166,11 +174,12 @@ def _shot_lines(rig: RigResult) -> list[str]:
     return lines
 
 
-def stereo_from_detections(dets: list[list[Detection]], target: Target, out_dir: str | Path,
-                           options: StereoOptions = StereoOptions()) -> StereoOutcome:
+def stereo_from_detections(dets: list[list[Detection]], target: Target, options: StereoOptions = StereoOptions(),
+                           out_dir: str | Path | None = None) -> StereoOutcome:
     """Paired detections (``dets[0]`` left, ``dets[1]`` right, one per shot) -> the joint
-    calibration, the rectification, ``left.yaml``, ``right.yaml``, ``stereo.yaml`` in ``out_dir``.
-    Raises :class:`~..calibrate.pipeline.CalibrationError` (nothing written) when it cannot."""
+    calibration, the rectification and, with ``out_dir``, ``left.yaml``, ``right.yaml``,
+    ``stereo.yaml`` there. Raises :class:`~..calibrate.pipeline.CalibrationError` (nothing
+    written) when it cannot."""
     if len(dets) != 2:
         raise PairingError(f"a stereo pair has two cameras, got {len(dets)}")
     rig = calibrate_rig(dets, target, ["left", "right"], options.rig, [d.name for d in dets[0]])
@@ -178,22 +187,24 @@ def stereo_from_detections(dets: list[list[Detection]], target: Target, out_dir:
     E = rig.extrinsics[1]
     rect = rectify_pair(left, right, E.R, E.translation, options.alpha)
     epi = epipolar_rms(rig, rect, dets, target)
-    out = Path(out_dir)
-    lp, rp = write_pair_yamls(out, left, right, rect, options.camera_name)
     sd = StereoData(f"{options.camera_name}/left", f"{options.camera_name}/right", options.left_frame,
                     options.right_frame, left.width, left.height, E, *rig.extrinsic_sigma[1], *rig.pose_sigma[1], epi,
                     rect)
-    sp = write_stereo_yaml(out / "stereo.yaml", sd)
+    files: list[Path] = []
+    if out_dir is not None:
+        files = [*write_pair_yamls(Path(out_dir), left, right, rect, options.camera_name),
+                 write_stereo_yaml(Path(out_dir) / "stereo.yaml", sd)]
     sr, st = rig.extrinsic_sigma[1]
     lines = ["shots:", *_shot_lines(rig), *rig.summary_lines(),
              f"X_right = R X_left + T: T = [{', '.join(f'{v:.6f}' for v in E.translation)}] m "
              f"(+- [{', '.join(f'{v:.4f}' for v in st)}] mm), rotation {E.angle_deg():.4f} deg "
              f"(+- [{', '.join(f'{v:.5f}' for v in sr)}] deg about the right camera's axes)",
              f"rectification: {rect.method}; baseline {rect.baseline:.6f} m; right P[0,3] = {rect.P2[0, 3]:.4f}",
-             f"epipolar RMS {epi:.4f} px (rows of the same circle tangents / corners in the rectified pair)",
-             f"wrote {lp}, {rp} and {sp}",
-             "publish the right optical frame with:", "  " + sd.static_transform()]
-    return StereoOutcome(rig, rect, epi, [lp, rp, sp], lines)
+             f"epipolar RMS {epi:.4f} px (rows of the same circle tangents / corners in the rectified pair)"]
+    if files:
+        lines.append("wrote " + ", ".join(str(f) for f in files))
+    lines += ["publish the right optical frame with:", "  " + sd.static_transform()]
+    return StereoOutcome(rig, rect, epi, sd, files, lines)
 
 
 @dataclass
@@ -262,7 +273,7 @@ def run_stereo(left: list[str], right: list[str], target: Target, out_dir: str |
     groups = [[q for a in arg for q in expand_glob(a)] for arg in (left, right)]
     pairing = pair_files(groups, ["left", "right"])
     dets = detect_shots(pairing, target, params, progress_printer(progress))
-    return pairing, dets, stereo_from_detections(dets, target, out_dir, options)
+    return pairing, dets, stereo_from_detections(dets, target, options, out_dir)
 
 
 def parse_camera_args(items: list[str]) -> tuple[list[str], list[list[Path]]]:
@@ -291,9 +302,11 @@ def run_rig(cameras: list[str], target: Target, out_dir: str | Path, options: Ri
     return pairing, dets, rig_from_detections(dets, target, names, out_dir, options)
 
 
-def write_reports(rig: RigResult, dets: list[list[Detection]], pairing: Pairing, out_dir: str | Path) -> list[Path]:
+def write_reports(rig: RigResult, dets: list[list[Detection]], pairing: Pairing, out_dir: str | Path,
+                  stereo: StereoOutcome | None = None, target: Target | None = None) -> list[Path]:
     """Each camera's report (:func:`~..io.report.write_report` of its part of the joint
-    estimate, its worst views drawn on its own images) in ``out_dir/<camera>/``."""
+    estimate, its worst views drawn on its own images) in ``out_dir/<camera>/``; for a pair
+    (``stereo`` and ``target`` given) also the stereo page (:mod:`..io.stereo_report`)."""
     from ..io.report import write_report
 
     out = []
@@ -305,4 +318,12 @@ def write_reports(rig: RigResult, dets: list[list[Detection]], pairing: Pairing,
 
         files = write_report(rig.cameras[c], dets[c], Path(out_dir) / name, images=image)
         out.append(files.pdf)
+    if stereo is not None and target is not None:
+        from ..io.stereo_report import write_stereo_report
+
+        def shot_image(c: int, s: int) -> np.ndarray | None:
+            p = pairing.paths[c][s]
+            return read_grey(p) if p is not None else None
+
+        out.append(write_stereo_report(out_dir, rig, stereo.rectification, dets, target, stereo.lines, shot_image)[0])
     return out
