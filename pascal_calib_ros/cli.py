@@ -422,7 +422,7 @@ def cmd_study(args: argparse.Namespace) -> int:
         return EXIT_OK
     from .sim.study import run_study
 
-    run_study(args.name, Path(args.out), views=args.views, seed=args.seed, draws=args.draws)
+    run_study(args.name, Path(args.out), views=args.views, seed=args.seed, draws=args.draws, sessions=args.sessions)
     return EXIT_OK
 
 
@@ -681,6 +681,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("name", choices=["accuracy", "edge-bias", "grids", "target-shape", "lenses", "handeye", "trust",
                                         "model-bias", "stereo"])
     s.add_argument("--draws", type=int, default=10, help="trust, stereo: noise draws and new sessions (per scenario)")
+    s.add_argument("--sessions", type=int, default=5, help="stereo: sessions of the accuracy table")
     s.add_argument("--only", default="", help="trust: only the scenarios whose name contains this text")
     s.add_argument("--opencv4-python", default="", help="handeye: a Python with OpenCV 4.x for calibrateHandEye")
     s.add_argument("--targets", default="ring_a4,checkerboard_a4", help="handeye: targets, comma-separated")

@@ -44,7 +44,7 @@ from ..detect.target_detector import detect_target
 from ..geometry.transform import Transform
 from ..sim.render import Pose, features_in_image, render_view
 from ..sim.rig import RigSession, RigSpec, render_rig, stereo_pair
-from ..sim.study import _board_corners, _write, markdown_table
+from ..sim.study import _board_corners, _write
 from ..targets import resolve_target
 
 GOALS = {"rot_err_deg": 0.005, "trans_err_mm": 0.1, "f_err_pct": 0.02, "c_err_px": 0.3}
@@ -228,19 +228,21 @@ def trust_table(noise: list[dict[str, Any]], sessions: list[dict[str, Any]]) -> 
 
 def stereo_study(out: Path, views: int = 15, seed: int = 1, draws: int = 10, sessions: int = 5,
                  workers: int = 2) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
-    """Both tables (CSV, JSON, Markdown in ``out``): accuracy over ``sessions`` sessions, trust
-    over ``draws`` noise draws and ``draws`` new sessions."""
+    """Both tables (CSV, JSON, Markdown in ``out``): accuracy over ``sessions`` sessions (seeds
+    ``seed`` .. ``seed + sessions - 1``), trust over ``draws`` noise draws of the session of
+    ``seed`` and ``draws`` new sessions (0: no trust table)."""
     sys.stderr.write(f"stereo: {sessions} sessions of {views} shots, ours and OpenCV ...\n")
     with ProcessPoolExecutor(workers) as pool:
         acc = [r for rows in pool.map(_accuracy_job, [(views, seed + k) for k in range(sessions)]) for r in rows]
-        sys.stderr.write(f"stereo: {draws} noise draws and {draws} new sessions ...\n")
         jobs = [(views, seed, d, "noise") for d in range(draws)] + [(views, seed, d, "session") for d in range(draws)]
+        if draws:
+            sys.stderr.write(f"stereo: {draws} noise draws and {draws} new sessions ...\n")
         trust = list(pool.map(_trust_job, jobs))
     per_session = [{k: v for k, v in r.items() if k not in ("signed", "sigma", "est", "err")} for r in acc]
     _write(per_session, out, "stereo_sessions")
     table = accuracy_table(acc)
     _write(table, out, "stereo_accuracy")
-    ttable = trust_table(trust[:draws], trust[draws:])
-    _write(ttable, out, "stereo_trust")
-    print(markdown_table(table, list(table[0])))
+    ttable = trust_table(trust[:draws], trust[draws:]) if draws else []
+    if ttable:
+        _write(ttable, out, "stereo_trust")
     return table, ttable
