@@ -104,7 +104,7 @@ class RigResult:
         both = int(np.sum(self.used.sum(0) >= 2))
         lines.append(f"shots: {self.used.shape[1]}, {both} used by two or more cameras; "
                      + ", ".join(f"{n} {int(self.used[c].sum())}" for c, n in enumerate(self.names))
-                     + f" views; edge RMS {self.rms:.4f} px")
+                     + f" views; RMS {self.rms:.4f} px (edge distances; corners without edges)")
         for c, n in enumerate(self.names):
             r = self.cameras[c]
             s = r.std
