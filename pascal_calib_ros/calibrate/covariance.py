@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .lm import LeastSquaresProblem
 from .observations import ViewData
 from .problem import Problem
 
@@ -133,7 +134,7 @@ def row_variances(prob: Problem, views: list[ViewData], f: np.ndarray, psi: np.n
     return var
 
 
-def sandwich_covariance(prob: Problem, f: np.ndarray, Jg: np.ndarray, Jv: np.ndarray, dpsi: np.ndarray,
+def sandwich_covariance(prob: LeastSquaresProblem, f: np.ndarray, Jg: np.ndarray, Jv: np.ndarray, dpsi: np.ndarray,
                         var: np.ndarray) -> np.ndarray:
     """A^-1 B A^-1 over all parameters: A = J^T diag(psi') J, B = J^T diag(var) J (module docstring;
     ``var`` from :func:`row_variances`); rows beyond ``len(var)`` (e.g. a robot chain's, already in

@@ -4,10 +4,26 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
-from .problem import Problem
+
+class LeastSquaresProblem(Protocol):
+    """What :func:`levenberg_marquardt` and the sandwich covariance need of a problem:
+    :class:`~.problem.Problem`, :class:`~.handeye.chain.ChainProblem`, :class:`~.rig_problem.RigProblem`."""
+
+    def evaluate(self, x: np.ndarray, intr0: np.ndarray, jac: bool = True
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+
+    def robust_weights(self, f: np.ndarray, loss_scale: float) -> np.ndarray: ...
+
+    def robust_cost(self, f: np.ndarray, loss_scale: float) -> float: ...
+
+    def loss_derivatives(self, f: np.ndarray, loss_scale: float) -> tuple[np.ndarray, np.ndarray]: ...
+
+    def normal_equations(self, f: np.ndarray, Jg: np.ndarray, Jv: np.ndarray, w: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray]: ...
 
 
 @dataclass
@@ -23,7 +39,7 @@ class LMResult:
     message: str
 
 
-def levenberg_marquardt(prob: Problem, x0: np.ndarray, intr0: np.ndarray, loss_scale: float,
+def levenberg_marquardt(prob: LeastSquaresProblem, x0: np.ndarray, intr0: np.ndarray, loss_scale: float,
                         max_iter: int = 60, tol: float = 1e-10) -> LMResult:
     """Levenberg-Marquardt with iteratively reweighted soft-L1 loss rho(z) = 2 (sqrt(1 + z) - 1),
     z = (r / f)^2, weights 1 / sqrt(1 + z); normal equations from :meth:`Problem.normal_equations`

@@ -9,10 +9,11 @@ from __future__ import annotations
 import argparse
 import sys
 
-from . import bag, calibrate, diff, export, handeye, render, studies, target, verify
+from . import bag, calibrate, diff, export, handeye, render, stereo, studies, target, verify
 from .common import EXIT_INPUT, error
 
-COMMANDS = (calibrate, handeye, diff, export, verify, render, bag, studies, target)  # each: add_parser(sub), run(args)
+# each command module: add_parser(sub), and the function it sets as the parser's func
+COMMANDS = (calibrate, handeye, stereo, diff, export, verify, render, bag, studies, target)
 
 
 def build_parser() -> argparse.ArgumentParser:

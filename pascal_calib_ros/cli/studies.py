@@ -26,9 +26,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     e.set_defaults(func=cmd_experiment)
     s = sub.add_parser("study", help="accuracy studies against ground truth (see README)")
     s.add_argument("name", choices=["accuracy", "edge-bias", "grids", "target-shape", "lenses", "handeye", "trust",
-                                        "model-bias", "verify"])
-    s.add_argument("--sessions", type=int, default=20, help="verify: verification sessions per scenario")
-    s.add_argument("--draws", type=int, default=10, help="trust: noise draws and new sessions per scenario")
+                                        "model-bias", "verify", "stereo"])
+    s.add_argument("--sessions", type=int, default=None,
+                   help="verify: verification sessions per scenario (default 20); stereo: sessions of the accuracy "
+                        "table (default 5)")
+    s.add_argument("--draws", type=int, default=10, help="trust, stereo: noise draws and new sessions per scenario")
     s.add_argument("--only", default="", help="trust: only the scenarios whose name contains this text; verify: "
                                               "camera, hand-eye and/or timing (comma-separated)")
     s.add_argument("--opencv4-python", default="", help="handeye: a Python with OpenCV 4.x for calibrateHandEye")
@@ -66,7 +68,7 @@ def cmd_study(args: argparse.Namespace) -> int:
         from ..studies.verify_study import StudySpec, verify_study
 
         parts = {"camera", "hand-eye", "timing"} if not args.only else set(args.only.split(","))
-        verify_study(Path(args.out), StudySpec(sessions=args.sessions, views=args.views or 10, seed=args.seed,
+        verify_study(Path(args.out), StudySpec(sessions=args.sessions or 20, views=args.views or 10, seed=args.seed,
                                                camera="camera" in parts, hand_eye="hand-eye" in parts,
                                                timing="timing" in parts))
         return EXIT_OK
@@ -77,7 +79,8 @@ def cmd_study(args: argparse.Namespace) -> int:
         return EXIT_OK
     from ..studies.study import run_study
 
-    run_study(args.name, Path(args.out), views=args.views, seed=args.seed)
+    run_study(args.name, Path(args.out), views=args.views, seed=args.seed, draws=args.draws,
+              sessions=args.sessions or 5)
     return EXIT_OK
 
 

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 import cv2
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import TransformStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
@@ -45,7 +45,6 @@ from ..io.calibration_files import read_calibration_file
 from ..io.hand_eye_yaml import write_hand_eye_yaml
 from ..io.image_msgs import ImageConversionError, compressed_to_grey, grey_to_image_fields, image_to_grey
 from ..io.images import read_grey
-from ..report.text import summary_line
 from ..session.live import LiveSession, Snapshot, max_motion_of
 from ..targets import Target, resolve_target
 from ..workflows.detection import detection_params
@@ -64,6 +63,7 @@ from .commit import commit_camera_info
 from .conversions import camera_info_msg, transform_msg
 from .params import PARAMS, ParameterError, declare_parameters, validate_parameters
 from .robot_poses import RobotPoseInput
+from .status import status_message
 
 # a frame waits at most this long (wall time, or pose_max_age if longer) for the robot pose published
 # for its stamp: the pose comes on another topic and may be late on a loaded machine
@@ -280,48 +280,7 @@ class CalibrationNode(Node):
                 "each pose longer")
 
     def publish_status(self) -> None:
-        s = self.session
-        with s.lock:
-            col = s.collector
-            cov, n, ready = col.coverage(), len(col.views), col.ready
-            rejected, last_rej = dict(col.rejected), col.last_rejection
-            with_pose = sum(p is not None for p in col.robot_poses)
-        result = self.result
-        _, session_dropped = self.session_frames()
-        pose_error = self.robot.error if self.robot is not None else ""
-        st = DiagnosticStatus(name=f"{self.get_name()}: calibration", hardware_id=str(self.p("camera_name")))
-        if self.calibrating.locked():
-            st.level, st.message = DiagnosticStatus.OK, "calibrating"
-        elif pose_error:
-            st.level, st.message = DiagnosticStatus.ERROR, pose_error
-        elif ready:
-            st.level, st.message = DiagnosticStatus.OK, f"ready: {n} views; call ~/calibrate"
-        else:
-            st.level = DiagnosticStatus.WARN
-            st.message = (f"collecting: {n}/{col.min_views} views, coverage "
-                          + " ".join(f"{k} {v:.2f}" for k, v in cov.items()))
-            if session_dropped:
-                st.message += (f"; {session_dropped} frame(s) dropped while the detector was busy "
-                               "(replay: use lock-step or a lower rate)")
-        kv = {
-            "views_accepted": n, "views_rejected": sum(rejected.values()), "ready": ready,
-            "frames_received": self.frames_received, "frames_examined": self.frames_examined,
-            "frames_dropped": self.frames_dropped, "frames_dropped_session": session_dropped,
-            "frames_bad": self.frames_bad, "last_rejection": last_rej, "last_error": self.last_error,
-            "frames_dropped_note": self.dropped_note(),
-            **{f"coverage_{k}": round(v, 3) for k, v in cov.items()},
-            **{f"rejected: {k}": v for k, v in sorted(rejected.items())},
-            "result": summary_line(result) if result else "",
-            "collect": self.p("collect"), "max_motion_px": s.gate.max_motion_px,
-            "captures_stored": s.captures.stored, "captures_refused": s.captures.refused,
-        }
-        if self.robot is not None:
-            kv.update(self.robot.status(with_pose))
-        if self.p("hand_eye"):
-            kv["hand_eye"] = self.hand_eye_line
-        kv["verify"] = self.verify_line
-        st.values = [KeyValue(key=k, value=str(v)) for k, v in kv.items()]
-        self.pub_status.publish(DiagnosticArray(header=self._header(), status=[st]))
+        self.pub_status.publish(status_message(self))
 
     def _header(self) -> Header:
         return Header(stamp=self.get_clock().now().to_msg(), frame_id=self.frame_id)

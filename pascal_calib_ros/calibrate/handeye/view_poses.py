@@ -40,7 +40,7 @@ def camera_pose(det: Detection, target: Target, cam: Camera, origin: tuple[float
     return Transform.from_rotvec(np.ravel(rv), np.ravel(t))
 
 
-def _polished_pose(view: ViewData, C: Transform, cam: Camera, opt: CalibrationOptions, dof: int) -> Transform:
+def polished_pose(view: ViewData, C: Transform, cam: Camera, opt: CalibrationOptions, dof: int) -> Transform:
     """The view's pose refined on its edges (and corners) with the camera held fixed (the closed
     form poses are good to a few degrees only; the hand-eye start needs them to the edges'
     accuracy). A 5-dof (single ring) pose keeps a rotation vector without z component."""
@@ -76,7 +76,7 @@ def posed_views(dets: list[Detection], reports: list[ViewReport], target: Target
             continue
         vd = observations(dets[k], target, origin, options)
         try:
-            C.append(_polished_pose(vd, camera_pose(dets[k], target, cam, origin), cam, options,
+            C.append(polished_pose(vd, camera_pose(dets[k], target, cam, origin), cam, options,
                                     5 if axisymmetric else 6))
         except (CircularPointError, np.linalg.LinAlgError, ValueError) as e:
             rep.used, rep.reason = False, f"pose with the calibrated camera: {e}"

@@ -1,0 +1,112 @@
+"""``pascal-calib stereo`` and ``pascal-calib rig``: a stereo pair or a camera rig in one estimate
+(the work: :mod:`..workflows.stereo`)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+from ..calibrate.options import METHODS, CalibrationOptions
+from ..calibrate.problem import DISTORTION_MODELS
+from ..calibrate.rig import RigOptions
+from ..detect.detection import DetectionParams
+from ..errors import PascalCalibError
+from ..workflows.detection import detection_params
+from ..workflows.stereo import PairingError, StereoOptions, run_rig, run_stereo, write_reports
+from .common import EXIT_CALIB, EXIT_INPUT, EXIT_OK, error, progress, target_or_none
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    st = sub.add_parser("stereo", help="stereo pair: both cameras' intrinsics and their transform in one "
+                                       "estimate; writes left.yaml, right.yaml (as camera_calibration) and stereo.yaml")
+    _rig_arguments(st)
+    st.add_argument("--left", nargs="+", required=True, metavar="GLOB", help="left images: folder, files or glob")
+    st.add_argument("--right", nargs="+", required=True, metavar="GLOB", help="right images: folder, files or glob")
+    st.add_argument("--alpha", type=float, default=0.0,
+                    help="rectification: 0 valid pixels only (camera_calibration's default) .. 1 every source pixel")
+    st.add_argument("--camera-name", default="narrow_stereo", help="left.yaml / right.yaml hold NAME/left, NAME/right")
+    st.add_argument("--left-frame", default="left_camera_optical_frame")
+    st.add_argument("--right-frame", default="right_camera_optical_frame")
+    st.set_defaults(func=run_stereo_command)
+
+    rg = sub.add_parser("rig", help="camera rig: every camera's intrinsics and pose in the first camera's frame in "
+                                    "one estimate; writes NAME.yaml per camera and rig.yaml")
+    _rig_arguments(rg)
+    rg.add_argument("--camera", action="append", required=True, metavar="NAME=GLOB",
+                    help="a camera and its images (folder or quoted glob); give it once per camera, the first is "
+                         "the reference; shots are matched by file stem")
+    rg.set_defaults(func=run_rig_command)
+
+
+
+def _rig_options(args: argparse.Namespace) -> tuple[Any, DetectionParams]:
+    params = detection_params(args.distortion, args.gamma, args.max_blur)
+    opts = CalibrationOptions(method=args.method or "", distortion=args.distortion, zero_skew=not args.skew,
+                              min_views=args.min_views)
+    return RigOptions(calibration=opts), params
+
+
+def run_stereo_command(args: argparse.Namespace) -> int:
+    """A stereo pair (workflows/stereo.py): left.yaml, right.yaml, stereo.yaml."""
+    target = target_or_none(args.target)
+    if target is None:
+        return EXIT_INPUT
+    rig_opts, params = _rig_options(args)
+    opts = StereoOptions(rig_opts, args.alpha, args.camera_name, args.left_frame, args.right_frame)
+    try:
+        pairing, dets, outcome = run_stereo(args.left, args.right, target, args.output, opts, params,
+                                            progress=progress())
+    except PairingError as e:
+        error(str(e))
+        return EXIT_INPUT
+    except PascalCalibError as e:
+        error(f"stereo calibration failed: {e}")
+        print("no calibration written", file=sys.stderr)
+        return EXIT_CALIB
+    print(f"shots paired {pairing.how}: {len(pairing.shots)} shots" +
+          (f"; without a partner: {', '.join(pairing.unmatched)}" if pairing.unmatched else ""))
+    print("\n".join(outcome.lines))
+    if args.report:
+        files = write_reports(outcome.rig, dets, pairing, args.report, outcome, target)
+        print("wrote " + ", ".join(str(f) for f in files))
+    return EXIT_OK
+
+
+def run_rig_command(args: argparse.Namespace) -> int:
+    """N cameras (workflows/stereo.py): one camera YAML per camera and rig.yaml."""
+    target = target_or_none(args.target)
+    if target is None:
+        return EXIT_INPUT
+    rig_opts, params = _rig_options(args)
+    try:
+        pairing, dets, outcome = run_rig(args.camera, target, args.output, rig_opts, params,
+                                         progress=progress())
+    except PairingError as e:
+        error(str(e))
+        return EXIT_INPUT
+    except PascalCalibError as e:
+        error(f"rig calibration failed: {e}")
+        print("no calibration written", file=sys.stderr)
+        return EXIT_CALIB
+    print(f"shots matched {pairing.how}: {len(pairing.shots)} shots" +
+          (f"; seen by one camera only: {', '.join(pairing.unmatched)}" if pairing.unmatched else ""))
+    print("\n".join(outcome.lines))
+    if args.report:
+        files = write_reports(outcome.rig, dets, pairing, args.report)
+        print("wrote " + ", ".join(str(f) for f in files))
+    return EXIT_OK
+
+
+def _rig_arguments(p: argparse.ArgumentParser) -> None:
+    """The options `stereo` and `rig` share."""
+    p.add_argument("--target", required=True, help="target YAML file or packaged name (ring_grid_a4, ...)")
+    p.add_argument("-o", "--output", required=True, help="output folder")
+    p.add_argument("--method", choices=METHODS, help="default: the target's natural method")
+    p.add_argument("--distortion", default="plumb_bob", choices=sorted(DISTORTION_MODELS))
+    p.add_argument("--skew", action="store_true", help="estimate skew (default: zero skew)")
+    p.add_argument("--gamma", type=float, default=1.0, help="linearise with this display gamma before edges")
+    p.add_argument("--max-blur", type=float, default=4.0, help="reject views whose edges are wider (px)")
+    p.add_argument("--min-views", type=int, default=3, help="per camera")
+    p.add_argument("--report", metavar="DIR", help="write each camera's report into DIR/<camera>/ (stereo: and the "
+                                                   "pair's page DIR/stereo.pdf)")
