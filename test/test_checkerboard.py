@@ -75,15 +75,19 @@ def _best_of_both_ends(corners: np.ndarray, truth: np.ndarray) -> np.ndarray:
     return min((corners, corners[::-1]), key=lambda c: float(np.sum((c - truth) ** 2)))
 
 
-def _classic_corners(img: np.ndarray, target: Target) -> np.ndarray:
+def _classic_corners(img: np.ndarray, target: Target, truth: np.ndarray) -> np.ndarray:
     """OpenCV's calibration tutorial: findChessboardCorners, then cornerSubPix with an 11x11
-    half-window, 30 iterations, eps 0.001; the order turned to the truth's."""
+    half-window, 30 iterations, eps 0.001; in the truth's order (of the grid's four orders, the
+    closest: OpenCV's may start at either end, with either handedness)."""
     assert target.checkerboard is not None
-    found, c = cv2.findChessboardCorners(img, target.checkerboard.inner_corners,
+    nx, ny = target.checkerboard.inner_corners
+    found, c = cv2.findChessboardCorners(img, (nx, ny),
                                          flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
     assert found
     criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 30, 0.001)
-    return np.asarray(cv2.cornerSubPix(img, c, (11, 11), (-1, -1), criteria), float).reshape(-1, 2)
+    g = np.asarray(cv2.cornerSubPix(img, c, (11, 11), (-1, -1), criteria), float).reshape(ny, nx, 2)
+    orders = [g, g[::-1, ::-1], g[::-1], g[:, ::-1]]
+    return min((o.reshape(-1, 2) for o in orders), key=lambda o: float(np.median(np.linalg.norm(o - truth, axis=1))))
 
 
 @dataclass(frozen=True)
@@ -135,9 +139,10 @@ def test_corners_as_accurate_as_opencv_classic_with_cornersubpix(plain_board: Ta
         c = find_checkerboard(v.image, target)
         assert c is not None and np.isfinite(c).all()  # nothing rejected on a clean board
         ours.append(_errors(c, truth))
-        theirs.append(_errors(_best_of_both_ends(_classic_corners(v.image, target), truth), truth))
+        theirs.append(_errors(_classic_corners(v.image, target, truth), truth))
     e, e_cv = np.concatenate(ours), np.concatenate(theirs)
     rms, rms_cv = np.sqrt(np.mean(e**2)), np.sqrt(np.mean(e_cv**2))
+    assert np.median(e_cv) < 0.05, np.median(e_cv)  # OpenCV's corners are good here: a comparison that can fail
     assert rms <= rms_cv and e.max() <= e_cv.max(), (rms, e.max(), rms_cv, e_cv.max())
     assert rms < 0.03 and e.max() < 0.1, (rms, e.max())
 
