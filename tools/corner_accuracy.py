@@ -33,17 +33,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from pascal_calib_ros.detect.checkerboard import (
-    MAX_ASYMMETRY,
-    _right_handed,
-    coarse_corners,
-    corner_clearance,
-    corner_radii,
-    find_checkerboard,
-    saddle_grid,
-)
+from pascal_calib_ros.detect.checkerboard import find_checkerboard
 from pascal_calib_ros.detect.detection import Detection
-from pascal_calib_ros.detect.saddle import refine_saddles
 from pascal_calib_ros.io.images import read_grey
 from pascal_calib_ros.sim.bench import bench_frames
 from pascal_calib_ros.sim.render import RenderedView
@@ -289,6 +280,9 @@ def _clean_ratios(img: np.ndarray, target: Target, exact: np.ndarray | None = No
     """Asymmetry of the corners of a clean view over the board's lower quartile (the check's
     statistic; it rejects above ``MAX_ASYMMETRY``) after the first refinement; with the ``exact``
     corners, only of those refined to within 0.1 px of them (the others are searched again)."""
+    from pascal_calib_ros.detect.checkerboard import _right_handed, coarse_corners, corner_radii
+    from pascal_calib_ros.detect.saddle import refine_saddles
+
     assert target.checkerboard is not None
     nx, ny = target.checkerboard.inner_corners
     c = coarse_corners(img, (nx, ny))
@@ -303,7 +297,10 @@ def _clean_ratios(img: np.ndarray, target: Target, exact: np.ndarray | None = No
 
 
 def check_table(photos: Path | None, board: Path | None, trials: int = 15) -> None:
-    """The corner check: its statistic on clean corners, and what it does with spoiled ones."""
+    """The corner check: its statistic on clean corners, and what it does with spoiled ones
+    (imports of this branch's detector here: the tables above also run against an older one)."""
+    from pascal_calib_ros.detect.checkerboard import MAX_ASYMMETRY
+
     print(f"corner check: asymmetry / board's lower quartile on clean corners (rejected above {MAX_ASYMMETRY});\n"
           "renders: the corners refined to within 0.1 px of the truth; photos: all")
     cases = [("checkerboard_a4", 640, 480), ("checkerboard_a4", 800, 600), ("pascal_board_a3", 1920, 1080)]
@@ -331,6 +328,9 @@ def check_table(photos: Path | None, board: Path | None, trials: int = 15) -> No
 
 
 def _spoil_table(cases: list[tuple[str, int, int]], trials: int) -> None:
+    from pascal_calib_ros.detect.checkerboard import corner_clearance, corner_radii, saddle_grid
+    from pascal_calib_ros.detect.saddle import refine_saddles
+
     print(f"spoiled corners ({trials} per view, 3 views per case: {', '.join(f'{t} {w}x{h}' for t, w, h in cases)};\n"
           "size 0.15-0.6 and offset 0-0.8 of the corner's clearance; refined from the truth + 0.5 px noise)")
     rng = np.random.default_rng(2)
