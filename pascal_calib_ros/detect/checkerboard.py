@@ -83,6 +83,7 @@ def find_checkerboard(gray8: np.ndarray, target: Target, det: Detection | None =
 
 
 def _tell(det: Detection | None, text: str, refuse: bool = False) -> None:
+    """Say ``text`` on the detection: as its reason (the view refused) or appended to its note."""
     if det is None:
         return
     if refuse:
