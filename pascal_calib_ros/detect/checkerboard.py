@@ -6,18 +6,24 @@ resolution.
    threshold, fast check); failing that on the next finer copy if it is small enough, then with
    ``findChessboardCornersSB`` (without its slow exhaustive and accuracy passes) on the reduced
    copy. A full 5 MP frame is never searched: that took seconds.
-2. Every corner is refined at full resolution with ``cv2.cornerSubPix`` (the gradient of the image
-   is orthogonal to the line from the corner to any point of its two edges). The search window is
-   chosen per corner from the board as seen (:func:`corner_windows`): a fraction of the distance
-   from the corner to the nearest side of an adjacent square that does not pass through it, so
-   that the window holds only the corner's own two edges, whatever the size, tilt and distortion
-   of the squares. ``camera_calibration`` (ROS image_pipeline) detects on a reduced copy and
-   refines at full resolution the same way, with one window for all corners. The windows are
-   chosen again from the refined corners and the refinement repeated once. A refined corner about
-   which the image is not point-symmetric (:func:`corner_symmetry`: it sits on an edge, its coarse
-   estimate was too far off, as at the edge of a strongly distorted board) is searched again from
-   where its row and column predict it; if it still is not on a crossing, the board is not taken.
-3. Order. OpenCV returns the grid from either end (180 degrees), and the handedness of its order
+2. Every corner is refined at full resolution as the centre of point symmetry of the image
+   (:mod:`.saddle`) over a disc chosen per corner from the board as seen (:func:`corner_radii`):
+   a fraction of the distance from the corner to the nearest side of an adjacent square that does
+   not pass through it, so that the disc holds only the corner's own two edges, whatever the size,
+   tilt and distortion of the squares. ``camera_calibration`` (ROS image_pipeline) detects on a
+   reduced copy and refines at full resolution the same way, with ``cv2.cornerSubPix`` and one
+   window for all corners. Point symmetry replaced ``cornerSubPix`` (with per-corner windows):
+   twice as accurate on renders, unmoved by blur as wide as small squares, and on a board trimmed
+   at its squares (OpenCV's sample photos) ``cornerSubPix`` was pulled 1.5-3 px towards the
+   board's edge where the outer squares are narrower than the window expected
+   (``tools/corner_accuracy.py``, NOTES_corners.md).
+3. Check (:func:`saddle_grid`). A refined corner about which the image is not point-symmetric
+   like the board's other corners (an occluder, a smudge or a glare over it, an edge, a flat
+   patch) is searched again from where its row and column predict it (its coarse estimate too
+   far off, as at the edge of a strongly distorted board), on the border of the grid over half
+   the disc (a trimmed outer square); one that still is not is returned as NaN, and the board is
+   refused when fewer than half of its corners remain.
+4. Order. OpenCV returns the grid from either end (180 degrees), and the handedness of its order
    is not promised: a mirrored order is flipped first (a board seen from its printed side keeps
    the handedness of the sheet). The 180 degree ambiguity is resolved by the ring when the view
    has one (the ring's centre mapped with the homography of each candidate order must land on the
@@ -33,17 +39,26 @@ import numpy as np
 from ..geometry.circular import CircularPointError, centre_image_from_ring
 from ..targets import Checkerboard, Target
 from .detection import Detection
+from .saddle import SaddleFit, refine_saddles
 
 COARSE_PIXELS = 600_000  # the board is searched on a copy halved until it has at most this many pixels
 FINE_PIXELS = 1_400_000  # ... failing that, on the next finer copy if it has at most this many
-WINDOW_FRACTION = 0.4  # cornerSubPix half-window: this fraction of the corner's clearance (px) ...
+WINDOW_FRACTION = 0.4  # refine_corners: cornerSubPix half-window, this fraction of the clearance (px) ...
 MIN_HALF_WINDOW, MAX_HALF_WINDOW = 2, 25  # ... within these bounds
-MIN_SYMMETRY = 0.5  # a refined corner less point-symmetric than this is not on the crossing of its edges
+RADIUS_FRACTION = 0.4  # a corner is refined over a disc of this fraction of its clearance (px) ...
+MIN_RADIUS, MAX_RADIUS = 2.0, 12.0  # ... within these bounds
+# the check of a refined corner (measured: tools/corner_accuracy.py, NOTES_corners.md)
+MAX_ASYMMETRY = 3.0  # not on a saddle: residual asymmetry above this multiple of the board's lower quartile ...
+MIN_SYMMETRY = 0.5  # ... or less point-symmetric than this (an edge: < 0) ...
+MIN_SPREAD = 0.3  # ... or grey-level spread below this fraction of the board's median (a flat patch)
 _SUBPIX_CRITERIA = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 40, 0.001)
 
 
 def find_checkerboard(gray8: np.ndarray, target: Target, det: Detection | None = None) -> np.ndarray | None:
-    """(N, 2) inner corners in ``Checkerboard.corner_points`` order, or None if not found."""
+    """(N, 2) inner corners in ``Checkerboard.corner_points`` order, a NaN row for every corner the
+    image does not show as a saddle (``det.note`` says how many); None if the board is not found
+    or fewer than half of its corners are saddles (then ``det.reason``, or ``det.note`` when the
+    target has a ring to go on with, says why)."""
     board = target.checkerboard
     if board is None:
         return None
@@ -51,14 +66,30 @@ def find_checkerboard(gray8: np.ndarray, target: Target, det: Detection | None =
     coarse = coarse_corners(gray8, (nx, ny))
     if coarse is None:
         return None
-    grid = _repaired(gray8, refine_corners(gray8, _right_handed(coarse.reshape(ny, nx, 2))))
-    if grid is None:
+    grid, ok = saddle_grid(gray8, _right_handed(coarse.reshape(ny, nx, 2)))
+    n, bad = ok.size, int(ok.size - ok.sum())
+    if 2 * bad > n:
+        _tell(det, f"checkerboard not used: {bad} of {n} corners are not on a saddle (occluded, "
+                   "smudged or glared?)", refuse=not target.rings)
         return None
+    if bad:
+        _tell(det, f"{bad} of {n} corners rejected: not on a saddle")
+    grid[~ok] = np.nan
     corners = grid.reshape(-1, 2)
     by_ring = _order_by_ring(corners, target, det)
     if by_ring is not None:
         return by_ring
     return _order_by_colour(gray8, corners, board)
+
+
+def _tell(det: Detection | None, text: str, refuse: bool = False) -> None:
+    """Say ``text`` on the detection: as its reason (the view refused) or appended to its note."""
+    if det is None:
+        return
+    if refuse:
+        det.reason = text
+    else:
+        det.note = f"{det.note}; {text}" if det.note else text
 
 
 def _pyramid(gray8: np.ndarray, max_pixels: int) -> list[tuple[np.ndarray, int]]:
@@ -149,7 +180,8 @@ def refine_corners(gray8: np.ndarray, grid: np.ndarray, passes: int = 2) -> np.n
     """(ny, nx, 2) corners refined by ``cv2.cornerSubPix`` on the full-resolution frame, each with
     its own window (:func:`corner_windows`). The windows of the second pass come from the corners
     of the first: the coarse corners (a pixel or two off) can make the extrapolated outer squares
-    look smaller than they are."""
+    look smaller than they are. Not used by :func:`find_checkerboard` (point symmetry replaced it);
+    the OpenCV baseline of ``studies/study.py`` (SB corners + cornerSubPix) refines with it."""
     for _ in range(passes):
         win = corner_windows(grid).ravel()
         pts = grid.reshape(-1, 2).astype(np.float32)
@@ -160,20 +192,6 @@ def refine_corners(gray8: np.ndarray, grid: np.ndarray, passes: int = 2) -> np.n
             pts[idx] = p.reshape(-1, 2)
         grid = pts.astype(float).reshape(grid.shape)
     return grid
-
-
-def corner_symmetry(gray8: np.ndarray, grid: np.ndarray) -> np.ndarray:
-    """(ny, nx) point symmetry of the image about each corner, 1 - mean |I(c + d) - I(c - d)| /
-    contrast on a circle of 0.75 half-windows: near 1 on the crossing of two edges (0.96 or more
-    in 99.9 % of rendered corners, 0.64 at least), near 0 on a single edge or beside the corner."""
-    pts = grid.reshape(-1, 2)
-    radius = np.maximum(2.0, 0.75 * corner_windows(grid).ravel())
-    ang = np.linspace(0, 2 * np.pi, 16, endpoint=False)
-    mx = (pts[:, :1] + radius[:, None] * np.cos(ang)).astype(np.float32)
-    my = (pts[:, 1:] + radius[:, None] * np.sin(ang)).astype(np.float32)
-    v = cv2.remap(gray8, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).astype(float)
-    contrast = np.maximum(v.max(1) - v.min(1), 1.0)
-    return (1 - np.mean(np.abs(v[:, :8] - v[:, 8:]), 1) / contrast).reshape(grid.shape[:2])
 
 
 def grid_predictions(grid: np.ndarray) -> np.ndarray:
@@ -201,26 +219,52 @@ def grid_predictions(grid: np.ndarray) -> np.ndarray:
     return out
 
 
-def _repaired(gray8: np.ndarray, grid: np.ndarray) -> np.ndarray | None:
-    """The refined grid with every corner that is not on a crossing of edges (a coarse corner too
-    far off for its window, seen at the board's edge under strong distortion) searched again from
-    the position its row and column predict; None if one stays off."""
-    bad = corner_symmetry(gray8, grid) < MIN_SYMMETRY
-    if not bad.any():
-        return grid
-    known = grid.copy()
-    known[bad] = np.nan
-    pred = grid_predictions(known)
-    if not np.isfinite(pred[bad]).all():
-        return None
-    seeded = grid.copy()
-    seeded[bad] = pred[bad]
-    win = corner_windows(seeded)
-    for j, i in zip(*np.nonzero(bad), strict=True):
-        p = seeded[j, i].astype(np.float32).reshape(1, 1, 2)
-        cv2.cornerSubPix(gray8, p, (int(win[j, i]), int(win[j, i])), (-1, -1), _SUBPIX_CRITERIA)
-        seeded[j, i] = p.ravel()
-    return seeded if (corner_symmetry(gray8, seeded)[bad] >= MIN_SYMMETRY).all() else None
+def corner_radii(grid: np.ndarray) -> np.ndarray:
+    """(ny, nx) radii (px) of the discs over which each corner is refined and checked:
+    ``RADIUS_FRACTION`` of its clearance, within ``MIN_RADIUS`` .. ``MAX_RADIUS``."""
+    return np.clip(RADIUS_FRACTION * corner_clearance(grid), MIN_RADIUS, MAX_RADIUS)
+
+
+def _on_saddle(fit: SaddleFit, board: SaddleFit) -> np.ndarray:
+    """Which refined corners the image shows as saddles: about as point-symmetric as the board's
+    clean corners (not spoiled by a blob, a smudge or a glare; the lower quartile of the board's
+    asymmetry stands for them, right while a quarter of the corners is clean), point-symmetric at
+    all (not an edge), and with about the board's contrast (not a flat patch)."""
+    return ((fit.rms <= MAX_ASYMMETRY * np.percentile(board.rms, 25)) & (fit.symmetry >= MIN_SYMMETRY)
+            & (fit.spread >= MIN_SPREAD * np.median(board.spread)))
+
+
+def saddle_grid(gray8: np.ndarray, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The (ny, nx, 2) corners refined as centres of point symmetry (:mod:`.saddle`), and (ny, nx)
+    which of them are saddles (:func:`_on_saddle`). A corner that is not is searched again from
+    where its row and column predict it (its coarse estimate too far off, as at the edge of a
+    strongly distorted board); a corner on the grid's border then over half the disc (its radius
+    came from squares extrapolated beyond the grid, which a board trimmed at its squares prints
+    smaller), and left out (False) if it still is not."""
+    shape = grid.shape
+    rho = corner_radii(grid).ravel()
+    fit = refine_saddles(gray8, grid.reshape(-1, 2), rho)
+    pts = fit.points.copy()
+    ok = _on_saddle(fit, fit)
+    if ok.all() or not ok.any():
+        return pts.reshape(shape), ok.reshape(shape[:2])
+    known = pts.copy()
+    known[~ok] = np.nan
+    pred = grid_predictions(known.reshape(shape)).reshape(-1, 2)
+    seed = np.where(np.isfinite(pred), pred, pts)
+    # radii again: a corner far off made its neighbours' squares look small
+    rho = corner_radii(np.where(ok[:, None], pts, seed).reshape(shape)).ravel()
+    border = np.zeros(shape[:2], bool)
+    border[[0, -1]] = border[:, [0, -1]] = True
+    for shrink, where in ((1.0, np.ones(len(ok), bool)), (0.5, border.ravel())):
+        redo = np.flatnonzero(~ok & where)
+        if not len(redo):
+            continue
+        again = refine_saddles(gray8, seed[redo], np.maximum(shrink * rho[redo], MIN_RADIUS))
+        good = _on_saddle(again, fit)
+        pts[redo[good]] = again.points[good]
+        ok[redo[good]] = True
+    return pts.reshape(shape), ok.reshape(shape[:2])
 
 
 def _order_by_ring(corners: np.ndarray, target: Target, det: Detection | None) -> np.ndarray | None:
@@ -238,7 +282,8 @@ def _order_by_ring(corners: np.ndarray, target: Target, det: Detection | None) -
     obj = board.corner_points()
     best: tuple[float, np.ndarray] | None = None
     for cand in (corners, corners[::-1].copy()):
-        H, _ = cv2.findHomography(obj, cand)
+        seen = np.isfinite(cand[:, 0])
+        H, _ = cv2.findHomography(obj[seen], cand[seen])
         if H is None:
             continue
         p = H @ np.array([target.rings[0].center[0], target.rings[0].center[1], 1.0])
@@ -257,12 +302,13 @@ def _order_by_colour(gray8: np.ndarray, corners: np.ndarray, board: Checkerboard
     nx, ny = board.inner_corners
     g = corners.reshape(ny, nx, 2)
     centres = (g[:-1, :-1] + g[:-1, 1:] + g[1:, :-1] + g[1:, 1:]) / 4  # square (i + 1, j + 1) at [j, i]
+    seen = np.isfinite(centres[..., 0])  # squares with all four corners
     h, w = gray8.shape[:2]
-    x = np.clip(np.round(centres[..., 0]).astype(int), 0, w - 1)
-    y = np.clip(np.round(centres[..., 1]).astype(int), 0, h - 1)
+    x = np.clip(np.round(np.where(seen, centres[..., 0], 0)).astype(int), 0, w - 1)
+    y = np.clip(np.round(np.where(seen, centres[..., 1], 0)).astype(int), 0, h - 1)
     value = gray8[y, x].astype(float)
     jj, ii = np.mgrid[0:ny - 1, 0:nx - 1]
     dark = ((ii + jj) % 2 == 0) == (board.first_square == "black")  # squares (i + 1, j + 1)
-    if value[dark].mean() > value[~dark].mean():
+    if value[dark & seen].mean() > value[~dark & seen].mean():
         return corners[::-1].copy()
     return corners

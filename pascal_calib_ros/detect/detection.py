@@ -49,7 +49,8 @@ class Detection:
     width: int
     height: int
     edges: list[CircleEdge] = field(default_factory=list)
-    corners: np.ndarray | None = None  # (N, 2) checkerboard inner corners, target order
+    # (N, 2) checkerboard inner corners, target order; NaN rows: corners not on a saddle (see note)
+    corners: np.ndarray | None = None
     reason: str = ""  # empty when usable
     name: str = ""
     note: str = ""  # what was left out of a usable view

@@ -217,7 +217,7 @@ def detect_target(image: np.ndarray, target: Target, params: DetectionParams = D
 
         corners = find_checkerboard(np.clip(gray, 0, 255).astype(np.uint8), target, det)
         if corners is None and not target.rings:
-            det.reason = "checkerboard not found"
+            det.reason = det.reason or "checkerboard not found"
             return det
         det.corners = corners
     return det
