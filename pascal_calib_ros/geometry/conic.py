@@ -186,7 +186,8 @@ def sampson_distance(C: np.ndarray, pts: np.ndarray) -> np.ndarray:
 
 def fit_conic(pts: np.ndarray, refine: bool = True, iterations: int = 10) -> np.ndarray:
     """Algebraic ellipse fit, then geometric refinement (Gauss-Newton on the Sampson distance
-    over the ellipse's 5 parameters). Returns a normalised conic."""
+    over the ellipse's 5 parameters, compiled: :func:`.conic_kernels.refine_ellipse`). Returns a
+    normalised conic."""
     C = fit_conic_algebraic(pts)
     if not refine:
         return C
@@ -194,36 +195,11 @@ def fit_conic(pts: np.ndarray, refine: bool = True, iterations: int = 10) -> np.
         e = Ellipse.from_conic(C)
     except ConicFitError:
         return C
-    params = np.array([e.cx, e.cy, e.a, e.b, e.angle])
-    scale = max(e.a, 1e-9)
-    prev = np.inf
-    for _ in range(iterations):
-        r = _ellipse_residual(params, pts)
-        cost = float(r @ r)
-        J = np.empty((len(pts), 5))
-        for k in range(5):
-            h = 1e-6 * (scale if k < 4 else 1.0)
-            dp = params.copy()
-            dp[k] += h
-            J[:, k] = (_ellipse_residual(dp, pts) - r) / h
-        try:
-            step = np.linalg.lstsq(J, -r, rcond=None)[0]
-        except np.linalg.LinAlgError:
-            break
-        new = params + step
-        if new[2] <= 0 or new[3] <= 0:
-            break
-        if float(np.sum(_ellipse_residual(new, pts) ** 2)) > cost:
-            break
-        params = new
-        if prev - cost < 1e-14 * max(cost, 1e-30):
-            break
-        prev = cost
-    return Ellipse(*params).to_conic()
+    from . import conic_kernels
 
-
-def _ellipse_residual(p: np.ndarray, pts: np.ndarray) -> np.ndarray:
-    return sampson_distance(Ellipse(*p).to_conic(), pts)
+    start = np.array([e.cx, e.cy, e.a, e.b, e.angle])
+    params = conic_kernels.refine_ellipse(start, np.ascontiguousarray(pts, np.float64), int(iterations))
+    return Ellipse(*(float(v) for v in params)).to_conic()
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,84 @@
+"""Compiled kernel of the geometric ellipse fit (numba): :func:`.conic.fit_conic`'s Gauss-Newton
+refinement of an ellipse's five parameters on the Sampson distance of the points.
+
+The iteration is the one numpy ran (forward-difference Jacobian with steps 1e-6 x the semi-axis a
+for centre and axes and 1e-6 rad for the angle, the least-squares step by LAPACK's SVD solver,
+stop when a step would make an axis non-positive or raise the cost, or when the cost stops
+falling); numpy spent ~50 µs of call overhead on every one of the 7 residual evaluations per
+iteration, which made a 700-point fit cost 3 ms instead of ~0.1 ms.
+
+This module imports numba; :mod:`.conic` imports it on first use, numba compiles the kernel on its
+first call and caches the machine code on disk (``cache=True``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def _sampson(p: np.ndarray, pts: np.ndarray, out: np.ndarray) -> float:
+    """Signed Sampson distances of ``pts`` (N, 2) to the ellipse p = (cx, cy, a, b, angle) (its
+    conic normalised as :meth:`.conic.Ellipse.to_conic` does) into ``out``; their sum of squares."""
+    cx, cy, a, b, ang = p[0], p[1], p[2], p[3], p[4]
+    c, s = math.cos(ang), math.sin(ang)
+    ia, ib = 1.0 / (a * a), 1.0 / (b * b)
+    a00 = c * c * ia + s * s * ib
+    a01 = c * s * (ia - ib)
+    a11 = s * s * ia + c * c * ib
+    d0 = -(a00 * cx + a01 * cy)
+    d1 = -(a01 * cx + a11 * cy)
+    f = -(d0 * cx + d1 * cy) - 1.0
+    norm = math.sqrt(a00 * a00 + 2 * a01 * a01 + a11 * a11 + 2 * d0 * d0 + 2 * d1 * d1 + f * f)
+    if a00 + a11 < 0:
+        norm = -norm
+    a00, a01, a11, d0, d1, f = a00 / norm, a01 / norm, a11 / norm, d0 / norm, d1 / norm, f / norm
+    cost = 0.0
+    for i in range(pts.shape[0]):
+        x, y = pts[i, 0], pts[i, 1]
+        g0 = x * a00 + y * a01 + d0
+        g1 = x * a01 + y * a11 + d1
+        alg = x * g0 + y * g1 + (x * d0 + y * d1 + f)
+        out[i] = alg / max(2.0 * math.sqrt(g0 * g0 + g1 * g1), 1e-300)
+        cost += out[i] * out[i]
+    return cost
+
+
+@njit(cache=True)
+def refine_ellipse(start: np.ndarray, pts: np.ndarray, iterations: int) -> np.ndarray:
+    """Gauss-Newton on the Sampson distances of ``pts`` (N, 2) over (cx, cy, a, b, angle) from
+    ``start``; at most ``iterations`` steps. Returns the parameters (5,)."""
+    n = pts.shape[0]
+    params = start.copy()
+    scale = max(params[2], 1e-9)
+    r, rk = np.empty(n), np.empty(n)
+    J = np.empty((n, 5))
+    dp, new = np.empty(5), np.empty(5)
+    rcond = np.finfo(np.float64).eps * max(n, 5)  # numpy's lstsq default (rcond=None)
+    prev = np.inf
+    for _ in range(iterations):
+        cost = _sampson(params, pts, r)
+        for k in range(5):
+            h = 1e-6 * (scale if k < 4 else 1.0)
+            dp[:] = params
+            dp[k] += h
+            _sampson(dp, pts, rk)
+            for i in range(n):
+                J[i, k] = (rk[i] - r[i]) / h
+        if not (np.all(np.isfinite(J)) and np.all(np.isfinite(r))):
+            break  # numpy's SVD would fail on these (LinAlgError)
+        step = np.linalg.lstsq(J, -r, rcond)[0]
+        for k in range(5):
+            new[k] = params[k] + step[k]
+        if new[2] <= 0 or new[3] <= 0:
+            break
+        if _sampson(new, pts, rk) > cost:
+            break
+        params[:] = new
+        if prev - cost < 1e-14 * max(cost, 1e-30):
+            break
+        prev = cost
+    return params

@@ -1,0 +1,99 @@
+"""The compiled edge-fit kernels (detect/edge_kernels.py, geometry/conic_kernels.py) against the
+numpy implementations they replace (test/edge_fits_numpy.py) and against scipy's functions."""
+
+import numpy as np
+import pytest
+from edge_fits_numpy import fit_band_profiles as band_numpy
+from edge_fits_numpy import fit_step_profiles as step_numpy
+from edge_fits_numpy import refine_ellipse_numpy
+from scipy.special import ndtr
+
+from pascal_calib_ros.detect.edges import fit_band_profiles, fit_step_profiles
+from pascal_calib_ros.geometry.conic import Ellipse
+
+
+def test_normal_cdf_and_density_to_float32_precision() -> None:
+    from numba import njit
+
+    from pascal_calib_ros.detect import edge_kernels as K
+
+    @njit
+    def both(z: np.ndarray) -> np.ndarray:
+        out = np.empty((2, z.size))
+        for i in range(z.size):
+            out[0, i], out[1, i] = K._phi_and_cdf(z[i])
+        return out
+
+    z = np.concatenate([np.linspace(-40, 40, 200001), [0.0, -0.0, 1e-300, -1e-300]])
+    phi, cdf = both(z)
+    assert np.abs(cdf - ndtr(z)).max() < 8e-8  # Abramowitz & Stegun 7.1.26: |erf error| <= 1.5e-7
+    exact_phi = np.exp(-0.5 * z * z) / np.sqrt(2 * np.pi)
+    # relative error of e^v below 1e-15 (1 + |v|): the rounding of v = -z²/2 itself
+    assert np.all(np.abs(phi - exact_phi) <= 1e-15 * (1 + z * z) * exact_phi + 1e-300)
+    assert np.all(np.diff(cdf[:200001]) >= 0)  # monotone: the fit's model cannot fold
+
+
+def _step_profiles(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    s = np.arange(-6, 6.01, 0.5)
+    s0, w, c = rng.uniform(-2, 2, n), rng.uniform(0.5, 2.5, n), rng.uniform(-150, 150, n)
+    prof = 60 + 0.5 * s + c[:, None] * ndtr((s - s0[:, None]) / w[:, None]) + rng.normal(0, 2, (n, len(s)))
+    return prof.astype(np.float32), s
+
+
+@pytest.mark.parametrize("iterations", [3, 5, 8])
+def test_step_fit_matches_numpy(iterations: int) -> None:
+    """Same start, damping and acceptance as the numpy fit: the same edges, 99 % of them to
+    1e-5 px, all to 1e-3 px (the normal CDF differs by < 8e-8, which can turn one accepted step
+    of an unconverged fit into a refused one; grey-level noise moves an edge by ~0.05 px)."""
+    prof, s = _step_profiles(400, iterations)
+    got = np.stack(fit_step_profiles(prof, s, 1.0, iterations), 1)
+    ref = np.stack(step_numpy(prof, s, 1.0, iterations), 1)
+    d = np.abs(got[:, 0] - ref[:, 0])
+    assert np.quantile(d, 0.99) < 1e-5 and d.max() < 1e-3  # s0, px
+    assert np.abs(got[:, 1] - ref[:, 1]).max() < 1e-3  # blur, px
+    assert np.abs(got[:, 2] - ref[:, 2]).max() < 1e-2  # contrast, grey levels
+    assert np.abs(got[:, 3] - ref[:, 3]).max() < 1e-5  # RMS residual
+    # per-profile offsets (n, m) as the grid batch passes them
+    S = s[None, :] + np.linspace(-0.3, 0.3, len(prof))[:, None]
+    got2 = np.stack(fit_step_profiles(prof, S, 1.0, iterations), 1)
+    assert np.abs(got2[:, 0] - np.stack(step_numpy(prof, S, 1.0, iterations), 1)[:, 0]).max() < 1e-3
+
+
+def test_band_fit_matches_numpy() -> None:
+    """The band fit (numpy ran it in float32) gives the same two edges to 1e-3 px."""
+    rng = np.random.default_rng(5)
+    n, m = 300, 49
+    lo, hi, w = rng.uniform(-3, -1, n), rng.uniform(1, 3, n), rng.uniform(0.6, 1.5, n)
+    S = (lo - 4)[:, None] + np.linspace(0, 1, m)[None] * (hi - lo + 8)[:, None]
+    band = ndtr((S - lo[:, None]) / w[:, None]) - ndtr((S - hi[:, None]) / w[:, None])
+    prof = (200 + 0.3 * S - 150 * band + rng.normal(0, 2, (n, m))).astype(np.float32)
+    lo0, hi0 = lo + rng.normal(0, 0.2, n), hi + rng.normal(0, 0.2, n)
+    p, r = fit_band_profiles(prof, S, lo0, hi0, np.full(n, 1.0), 4)
+    p_ref, r_ref = band_numpy(prof, S, lo0, hi0, 1.0, 4)
+    assert np.abs(p[:, [3, 5]] - p_ref[:, [3, 5]]).max() < 1e-3
+    assert np.abs(p[:, [4, 6]] - p_ref[:, [4, 6]]).max() < 1e-3
+    assert np.abs(r - r_ref).max() < 1e-3
+    assert np.abs(p[:, 3] - lo).mean() < 0.1 and np.abs(p[:, 5] - hi).mean() < 0.1  # and it fits
+
+
+def test_bad_profiles_give_nan_or_a_refused_step_not_a_crash() -> None:
+    prof, s = _step_profiles(6, 1)
+    prof[0] = np.nan
+    prof[1] = 7.0  # flat: no edge
+    s0, _w, c, rms = fit_step_profiles(prof, s, 1.0, 5)
+    assert np.isnan(rms[0]) and np.isfinite(s0[1:]).all() and abs(c[1]) < 1e-6
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_ellipse_refinement_matches_numpy(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    e = Ellipse(rng.uniform(100, 500), rng.uniform(100, 400), rng.uniform(20, 200), rng.uniform(10, 20),
+                rng.uniform(-3, 3))
+    pts = e.sample(300) + rng.normal(0, 0.3, (300, 2))
+    start = np.array([e.cx + 1.0, e.cy - 0.5, e.a * 1.02, e.b * 0.97, e.angle + 0.02])
+    from pascal_calib_ros.geometry import conic_kernels
+
+    got = conic_kernels.refine_ellipse(start, pts, 10)
+    ref = refine_ellipse_numpy(start, pts, 10)
+    assert np.abs(got - ref).max() < 1e-6  # px and rad; the stopping test ends both within this
