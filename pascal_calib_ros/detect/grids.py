@@ -17,14 +17,15 @@
 
 from __future__ import annotations
 
+import math
 from collections import deque
 
 import numpy as np
 
 from ..errors import PascalCalibError
-from ..geometry.conic import Ellipse
+from ..geometry.conic import Ellipse, conics_from_ellipses, group_medians
 from ..targets import CircleGrid, Target
-from .edges import refine_edges_batch
+from .edges import EdgeFit, refine_edges_batch
 
 
 class GridError(PascalCalibError):
@@ -99,52 +100,57 @@ def label_lattice(centres: np.ndarray, sizes: np.ndarray) -> dict[int, tuple[int
         raise GridError("no element with four grid neighbours: not a grid, or too few circles visible")
     seed, u0, v0 = found
     labels: dict[int, tuple[int, int]] = {seed: (0, 0)}
-    vectors: dict[int, tuple[np.ndarray, np.ndarray]] = {seed: (u0, v0)}
+    # the growth in Python floats (numpy's per-call cost dominates 2-vectors), the nearest two
+    # candidates of each prediction by one pass over all of them
+    pts: list[list[float]] = centres.tolist()
+    size: list[float] = sizes.tolist()
+    cx, cy = np.ascontiguousarray(centres[:, 0]), np.ascontiguousarray(centres[:, 1])
+    Vec = tuple[float, float]
+    vectors: dict[int, tuple[Vec, Vec]] = {seed: ((float(u0[0]), float(u0[1])), (float(v0[0]), float(v0[1])))}
     taken: dict[tuple[int, int], int] = {(0, 0): seed}
     queue = deque([seed])
     while queue:
         k = queue.popleft()
         i, j = labels[k]
         u, v = vectors[k]
-        for (di, dj), step in (((1, 0), u), ((-1, 0), -u), ((0, 1), v), ((0, -1), -v)):
+        xk, yk = pts[k]
+        for (di, dj), (sx, sy) in (((1, 0), u), ((-1, 0), (-u[0], -u[1])), ((0, 1), v), ((0, -1), (-v[0], -v[1]))):
             back = taken.get((i - di, j - dj))
             if back is not None:  # continue the line through the previous elements: follows
-                step = centres[k] - centres[back]  # perspective and distortion
+                sx, sy = xk - pts[back][0], yk - pts[back][1]  # perspective and distortion
                 back2 = taken.get((i - 2 * di, j - 2 * dj))
                 if back2 is not None:  # spacing changes geometrically along a line under perspective
-                    prev = centres[back] - centres[back2]
-                    ratio = float(np.linalg.norm(step)) / max(float(np.linalg.norm(prev)), 1e-9)
-                    step = step * float(np.clip(ratio, 0.7, 1.4))
+                    ratio = math.hypot(sx, sy) / max(math.hypot(pts[back][0] - pts[back2][0],
+                                                                pts[back][1] - pts[back2][1]), 1e-9)
+                    f = min(max(ratio, 0.7), 1.4)
+                    sx, sy = sx * f, sy * f
             else:  # parallelogram rule from an adjacent, already labelled line
                 for si, sj in ((dj, di), (-dj, -di)):
                     a_, b_ = taken.get((i + si, j + sj)), taken.get((i + si + di, j + sj + dj))
                     if a_ is not None and b_ is not None:
-                        step = centres[b_] - centres[a_]
+                        sx, sy = pts[b_][0] - pts[a_][0], pts[b_][1] - pts[a_][1]
                         break
-            pred = centres[k] + step
-            dist = np.hypot(centres[:, 0] - pred[0], centres[:, 1] - pred[1])
-            two = np.argpartition(dist, 1)[:2]
-            m, m2 = (int(two[0]), int(two[1])) if dist[two[0]] <= dist[two[1]] else (int(two[1]), int(two[0]))
+            d2 = (cx - (xk + sx)) ** 2 + (cy - (yk + sy)) ** 2
+            m = int(d2.argmin())
+            dm = float(d2[m])
+            d2[m] = np.inf
+            dm2 = float(d2.min()) if len(d2) > 1 else np.inf
             # an unambiguous match only: close to the prediction, the runner-up far from it
-            step_len = float(np.hypot(step[0], step[1]))
-            if (dist[m] > 0.3 * step_len or dist[m2] < 0.6 * step_len
-                    or not (0.6 < sizes[m] / sizes[k] < 1.6)):
+            step_len = math.hypot(sx, sy)
+            if dm > (0.3 * step_len) ** 2 or dm2 < (0.6 * step_len) ** 2 or not (0.6 < size[m] / size[k] < 1.6):
                 continue
             lab = (i + di, j + dj)
             if m in labels:
                 if labels[m] != lab:
-                    raise GridError(f"inconsistent grid labelling: element at ({centres[m][0]:.0f}, "
-                                    f"{centres[m][1]:.0f}) reached as {labels[m]} and {lab}")
+                    raise GridError(f"inconsistent grid labelling: element at ({pts[m][0]:.0f}, "
+                                    f"{pts[m][1]:.0f}) reached as {labels[m]} and {lab}")
                 continue
             if lab in taken:
                 continue
             labels[m] = lab
             taken[lab] = m
-            actual = centres[m] - centres[k]
-            if di:
-                vectors[m] = (actual * di, v)
-            else:
-                vectors[m] = (u, actual * dj)
+            ax, ay = pts[m][0] - xk, pts[m][1] - yk
+            vectors[m] = ((ax * di, ay * di), v) if di else (u, (ax * dj, ay * dj))
             queue.append(m)
     return labels
 
@@ -199,28 +205,29 @@ def detect_grid(gray: np.ndarray, work: np.ndarray, blobs: list, target: Target,
     edges: list[tuple[int, np.ndarray, np.ndarray, float, float]] = []
     dropped = 0
     # one batched measurement for all edges; the profile window must not reach the next edge
-    conics, windows, idx_of, look_outside, partners = [], [], [], [], []
+    ellipses, windows, idx_of, look_outside, partners = [], [], [], [], []
     for k, r, c in zip(keys, rows_idx, cols_idx, strict=True):
         outer, inner, touches = cands[k]
         if touches:
             dropped += 1
             continue
         idx = target.grid_circle_index(grid_index, int(r), int(c))
-        so = float(np.sqrt(outer.a * outer.b))
-        band = so - float(np.sqrt(inner.a * inner.b)) if inner is not None else so
-        hw = float(np.clip(0.45 * band, 1.5, 25.0))
-        conics.append(outer.to_conic())
+        so = math.sqrt(outer.a * outer.b)
+        band = so - math.sqrt(inner.a * inner.b) if inner is not None else so
+        hw = min(max(0.45 * band, 1.5), 25.0)
+        ellipses.append((outer.cx, outer.cy, outer.a, outer.b, outer.angle))
         windows.append(hw)
         idx_of.append(idx)
         look_outside.append(True)  # the outer edge: a disc's, or a ring's (the sheet's border beyond)
         partners.append(-1)
         if grid.kind == "ring" and inner is not None:
-            conics.append(inner.to_conic())
+            ellipses.append((inner.cx, inner.cy, inner.a, inner.b, inner.angle))
             windows.append(hw)
             idx_of.append(idx + 1)
             look_outside.append(False)
-            partners[-1] = len(conics) - 1  # the ring's two edges bound one dark band: fitted together
-            partners.append(len(conics) - 2)
+            partners[-1] = len(ellipses) - 1  # the ring's two edges bound one dark band: fitted together
+            partners.append(len(ellipses) - 2)
+    conics = list(conics_from_ellipses(np.array(ellipses, float)))
     # one pass: the threshold contours' ellipses are close enough for the profiles' windows and
     # normals (a second, re-centred pass measured no better in `pascal-calib study grids`); one
     # profile per 3 px of arc (default spacing): the refinement keeps ~10 points per element of a
@@ -233,11 +240,16 @@ def detect_grid(gray: np.ndarray, work: np.ndarray, blobs: list, target: Target,
                               curvature_correction=curvature_correction, look_outside=np.array(look_outside),
                               partners=np.array(partners, int))
     measured = {i for i, f in zip(idx_of, fits, strict=True) if f is not None}
+    kept: list[tuple[int, EdgeFit]] = []
     for i, f in zip(idx_of, fits, strict=True):
         outer_idx = i if target.circles[i].dark_inside else i - 1
         if f is None or outer_idx not in measured or (grid.kind == "ring" and outer_idx + 1 not in measured):
             continue  # an element counts only with all its edges measured
-        edges.append((i, f.points, f.conic, float(np.median(f.width)), f.rms))
+        kept.append((i, f))
+    if kept:  # each edge's median blur, all at once
+        owner = np.repeat(np.arange(len(kept)), [len(f.width) for _, f in kept])
+        widths = group_medians(np.concatenate([f.width for _, f in kept]), owner, len(kept)).tolist()
+        edges = [(i, f.points, f.conic, wd, f.rms) for (i, f), wd in zip(kept, widths, strict=True)]
     dropped += len({i if target.circles[i].dark_inside else i - 1 for i in idx_of}) - len(
         {e[0] for e in edges if target.circles[e[0]].dark_inside})
     note = f"{dropped} element(s) dropped (at the border or edge not measurable)" if dropped else ""

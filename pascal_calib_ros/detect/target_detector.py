@@ -48,6 +48,15 @@ def _to_float(image: np.ndarray) -> np.ndarray:
     return image.astype(np.float32)
 
 
+def _grey_range(image: np.ndarray, gray: np.ndarray) -> float:
+    """Highest minus lowest grey level of ``gray`` (``_to_float(image)``), by one
+    ``cv2.minMaxLoc`` pass over the smallest array holding them: a grey uint8 or uint16 image
+    itself (5 MP: 0.05 ms instead of numpy's two passes over the floats, 0.8 ms)."""
+    src = image if image.ndim == 2 and image.dtype in (np.uint8, np.uint16) else gray
+    lo, hi, _, _ = cv2.minMaxLoc(src)
+    return float(hi - lo) / (257.0 if src.dtype == np.uint16 else 1.0)
+
+
 def find_blobs(gray: np.ndarray, params: DetectionParams, modes: tuple[str, ...] = ("otsu", "adaptive")
                ) -> tuple[list[_Blob], int]:
     """Elliptical dark blobs (with their elliptical holes), full-resolution coordinates, and the
@@ -95,10 +104,9 @@ def _blobs_from_mask(mask: np.ndarray, scale: int, w: int, h: int, params: Detec
     sh, sw = mask.shape
     # cheap tests first, then one batched edge-strength median and one batched ellipse fit
     cand: list[tuple[int, bool]] = []
-    for i, c in enumerate(contours):
-        if hier[i][3] != -1 or len(c) < 12:
-            continue  # holes are visited through their parent
-        x, y, bw, bh = cv2.boundingRect(c)
+    lengths = np.fromiter(map(len, contours), int, len(contours))
+    for i in np.flatnonzero((hier[:, 3] == -1) & (lengths >= 12)).tolist():  # holes: through their parent
+        x, y, bw, bh = cv2.boundingRect(contours[i])
         if min(bw, bh) < 2 * min_r:
             continue
         cand.append((i, x <= 1 or y <= 1 or x + bw >= sw - 1 or y + bh >= sh - 1))
@@ -171,13 +179,13 @@ def detect_target(image: np.ndarray, target: Target, params: DetectionParams = D
     gray = _to_float(image)
     h, w = gray.shape
     det = Detection(w, h, name=name)
-    if gray.size == 0 or not np.isfinite(gray).all():
+    if gray.size == 0 or (image.dtype.kind == "f" and not np.isfinite(gray).all()):  # integers are finite
         det.reason = "empty or invalid image"
         return det
     if min(h, w) < 16:
         det.reason = f"image too small ({w}x{h})"
         return det
-    if float(gray.max() - gray.min()) < 20:
+    if _grey_range(image, gray) < 20:
         det.reason = "no contrast in the image (lens cap, exposure?)"
         return det
     work = gray

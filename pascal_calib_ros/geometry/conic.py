@@ -175,6 +175,27 @@ def ellipses_from_conics(C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return out, ok
 
 
+def conics_from_ellipses(par: np.ndarray) -> np.ndarray:
+    """:meth:`Ellipse.to_conic` for (G, 5) ellipses (cx, cy, a, b, angle) at once: (G, 3, 3)
+    normalised conics."""
+    par = np.asarray(par, float).reshape(-1, 5)
+    cx, cy, a, b, ang = par.T
+    c, s = np.cos(ang), np.sin(ang)
+    ia, ib = 1 / a**2, 1 / b**2
+    A = np.empty((len(par), 2, 2))
+    A[:, 0, 0] = c * c * ia + s * s * ib
+    A[:, 0, 1] = A[:, 1, 0] = c * s * (ia - ib)
+    A[:, 1, 1] = s * s * ia + c * c * ib
+    ctr = np.stack([cx, cy], 1)
+    Ac = np.einsum("gij,gj->gi", A, ctr)
+    C = np.zeros((len(par), 3, 3))
+    C[:, :2, :2] = A
+    C[:, :2, 2] = C[:, 2, :2] = -Ac
+    C[:, 2, 2] = np.einsum("gi,gi->g", ctr, Ac) - 1
+    C /= np.linalg.norm(C, axis=(1, 2))[:, None, None]
+    return C * np.where(C[:, 0, 0] + C[:, 1, 1] < 0, -1.0, 1.0)[:, None, None]
+
+
 def sampson_distance(C: np.ndarray, pts: np.ndarray) -> np.ndarray:
     """First-order geometric (Sampson) distance of points to a conic, signed (negative inside)."""
     X = np.concatenate([pts, np.ones((len(pts), 1))], 1)
