@@ -101,7 +101,7 @@ def _damped_step(A: np.ndarray, gv: np.ndarray, lam: float, k: int, L: np.ndarra
         x[i] = t * L[i, i]
 
 
-@njit(cache=True, fastmath=_FAST, error_model="numpy")
+@njit(cache=True, inline="always", fastmath=_FAST, error_model="numpy")
 def _median_inplace(v: np.ndarray, n: int) -> float:
     """Median of v[:n] (n >= 1); sorts v[:n] in place (insertion sort: n is a profile's length)."""
     for i in range(1, n):
@@ -114,7 +114,7 @@ def _median_inplace(v: np.ndarray, n: int) -> float:
     return 0.5 * (v[(n - 1) // 2] + v[n // 2])
 
 
-@njit(cache=True, fastmath=_FAST, error_model="numpy")
+@njit(cache=True, inline="always", fastmath=_FAST, error_model="numpy")
 def _step_start(y: np.ndarray, s: np.ndarray, w0: float, p: np.ndarray, g: np.ndarray, tmp: np.ndarray) -> None:
     """The step fit's start for one profile y(s) (as fit_step_profiles): plateaus from the first
     and last sixth, edge and width from the moments of the baseline-removed derivative."""
@@ -149,7 +149,7 @@ def _step_start(y: np.ndarray, s: np.ndarray, w0: float, p: np.ndarray, g: np.nd
     p[0], p[1], p[2], p[3], p[4] = lo, 0.0, hi - lo, c0, w
 
 
-@njit(cache=True, fastmath=_FAST, error_model="numpy")
+@njit(cache=True, inline="always", fastmath=_FAST, error_model="numpy")
 def _step_cost(y: np.ndarray, s: np.ndarray, p: np.ndarray) -> float:
     """Sum of squared residuals of a + b s + c Φ((s - s0)/w) (a reduction without stores: SIMD)."""
     a0, b0, c0, s0, iw = p[0], p[1], p[2], p[3], 1.0 / p[4]
@@ -161,7 +161,7 @@ def _step_cost(y: np.ndarray, s: np.ndarray, p: np.ndarray) -> float:
     return cost
 
 
-@njit(cache=True, fastmath=_FAST, error_model="numpy")
+@njit(cache=True, inline="always", fastmath=_FAST, error_model="numpy")
 def _step_normal_equations(y: np.ndarray, s: np.ndarray, p: np.ndarray, A: np.ndarray, gv: np.ndarray) -> None:
     """Jᵀ J (lower triangle) and Jᵀ r of the step model at p, J = [1, s, Φ, ∂/∂s0, ∂/∂w] per
     sample; accumulated in scalars in one pass without stores (SIMD)."""
@@ -201,7 +201,7 @@ def _step_normal_equations(y: np.ndarray, s: np.ndarray, p: np.ndarray, A: np.nd
     gv[0], gv[1], gv[2], gv[3], gv[4] = g0, g1, g2, g3, g4
 
 
-@njit(cache=True, fastmath=_FAST, error_model="numpy")
+@njit(cache=True, inline="always", fastmath=_FAST, error_model="numpy")
 def _fit_step_row(y: np.ndarray, s: np.ndarray, w0: float, iterations: int, out: np.ndarray, ws: np.ndarray,
                   small: np.ndarray) -> None:
     """One profile's step fit into out[:4] = s0, w, c, RMS; ws (2, m) and small (4, 5, 5) are scratch."""
@@ -239,7 +239,7 @@ def fit_step_rows(prof: np.ndarray, S: np.ndarray, w0: float, iterations: int) -
     return out
 
 
-@njit(cache=True, fastmath=_FAST, error_model="numpy")
+@njit(cache=True, inline="always", fastmath=_FAST, error_model="numpy")
 def _band_cost(y: np.ndarray, s: np.ndarray, p: np.ndarray) -> float:
     """Sum of squared residuals of a + b s - c [Φ((s - lo)/w_lo) - Φ((s - hi)/w_hi)] (SIMD)."""
     a0, b0, c0, lo, ilo, hi, ihi = p[0], p[1], p[2], p[3], 1.0 / p[4], p[5], 1.0 / p[6]
@@ -252,7 +252,7 @@ def _band_cost(y: np.ndarray, s: np.ndarray, p: np.ndarray) -> float:
     return cost
 
 
-@njit(cache=True, fastmath=_FAST, error_model="numpy")
+@njit(cache=True, inline="always", fastmath=_FAST, error_model="numpy")
 def _band_normal_equations(y: np.ndarray, s: np.ndarray, p: np.ndarray, A: np.ndarray, gv: np.ndarray) -> None:
     """Jᵀ J (lower triangle) and Jᵀ r of the band model at p, J = [1, s, -band, ∂/∂lo, ∂/∂w_lo,
     ∂/∂hi, ∂/∂w_hi] per sample; in scalars, one pass without stores (SIMD)."""
@@ -315,7 +315,7 @@ def _band_normal_equations(y: np.ndarray, s: np.ndarray, p: np.ndarray, A: np.nd
     gv[0], gv[1], gv[2], gv[3], gv[4], gv[5], gv[6] = g0, g1, g2, g3, g4, g5, g6
 
 
-@njit(cache=True, fastmath=_FAST, error_model="numpy")
+@njit(cache=True, inline="always", fastmath=_FAST, error_model="numpy")
 def _fit_band_row(y: np.ndarray, s: np.ndarray, start: np.ndarray, iterations: int, out: np.ndarray,
                   small: np.ndarray) -> None:
     """One profile's band fit from start = (lo0, hi0, w0) into out[:8]; small (4, 7, 7) is scratch."""
