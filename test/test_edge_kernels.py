@@ -97,3 +97,26 @@ def test_ellipse_refinement_matches_numpy(seed: int) -> None:
     got = conic_kernels.refine_ellipse(start, pts, 10)
     ref = refine_ellipse_numpy(start, pts, 10)
     assert np.abs(got - ref).max() < 1e-6  # px and rad; the stopping test ends both within this
+
+
+def test_group_moments_match_numpy() -> None:
+    """The per-group scatter matrices of the batched algebraic conic fit, against numpy."""
+    from pascal_calib_ros.geometry import conic_kernels
+
+    rng = np.random.default_rng(2)
+    owner = np.sort(rng.integers(0, 7, 400))
+    owner[owner == 3] = 4  # an empty group
+    pts = rng.normal(0, 30, (400, 2)) + owner[:, None] * 100.0
+    counts, mean, scale, S = conic_kernels.group_conic_moments(pts, owner, 7)
+    for g in range(7):
+        p = pts[owner == g]
+        assert counts[g] == len(p)
+        if not len(p):
+            assert np.all(S[g] == 0)
+            continue
+        m = p.mean(0)
+        sc = np.sqrt(2) / np.linalg.norm(p - m, axis=1).mean()
+        q = (p - m) * sc
+        D = np.stack([q[:, 0] ** 2, q[:, 0] * q[:, 1], q[:, 1] ** 2, q[:, 0], q[:, 1], np.ones(len(q))], 1)
+        assert np.allclose(mean[g], m, rtol=1e-13) and np.isclose(scale[g], sc, rtol=1e-13)
+        assert np.allclose(S[g], D.T @ D, rtol=1e-12, atol=1e-12)

@@ -126,7 +126,11 @@ def _blobs_from_mask(mask: np.ndarray, scale: int, w: int, h: int, params: Detec
             j = hier[j][0]
         holes_of[k] = hs
     to_fit = [cand[k][0] for k in strong] + [j for k in strong for j in holes_of[k]]
-    pts_of = {i: contours[i][:, 0, :].astype(float) * scale + (scale - 1) / 2 for i in to_fit}
+    # full-resolution coordinates of every contour to fit, converted in one pass
+    pts_of: dict[int, np.ndarray] = {}
+    if to_fit:
+        full = np.concatenate([contours[i][:, 0, :] for i in to_fit]).astype(float) * scale + (scale - 1) / 2
+        pts_of = dict(zip(to_fit, np.split(full, np.cumsum([len(contours[i]) for i in to_fit])[:-1]), strict=True))
     fits = dict(zip(to_fit, _ellipses_of([pts_of[i] for i in to_fit]), strict=True))
     out: list[_Blob] = []
     cut = 0
@@ -140,8 +144,11 @@ def _blobs_from_mask(mask: np.ndarray, scale: int, w: int, h: int, params: Detec
                 cut += 1
             continue
         e, res = fit
-        touches = bool(pts[:, 0].min() < margin + scale or pts[:, 1].min() < margin + scale
-                       or pts[:, 0].max() > w - 1 - margin - scale or pts[:, 1].max() > h - 1 - margin - scale)
+        # the contour's extent at full resolution, from its bounding box (the same integers)
+        x0, y0 = x * scale + (scale - 1) / 2, y * scale + (scale - 1) / 2
+        x1, y1 = (x + bw - 1) * scale + (scale - 1) / 2, (y + bh - 1) * scale + (scale - 1) / 2
+        touches = (x0 < margin + scale or y0 < margin + scale
+                   or x1 > w - 1 - margin - scale or y1 > h - 1 - margin - scale)
         holes = []
         for j in holes_of[k]:
             hf = fits[j]

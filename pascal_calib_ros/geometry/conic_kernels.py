@@ -82,3 +82,44 @@ def refine_ellipse(start: np.ndarray, pts: np.ndarray, iterations: int) -> np.nd
             break
         prev = cost
     return params
+
+
+@njit(cache=True)
+def group_conic_moments(pts: np.ndarray, owner: np.ndarray, n_groups: int
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per group of points (``owner`` sorted, as :func:`.conic.fit_conics_algebraic` takes
+    them): the point count, the centroid (G, 2), the Hartley scale sqrt(2) / mean distance to
+    the centroid (G,), and the 6 x 6 scatter matrix Σ dᵀd of d = (x², xy, y², x, y, 1) of the
+    normalised points (G, 6, 6). Two passes over the points, no (N, 3, 3) temporaries."""
+    n = pts.shape[0]
+    counts = np.zeros(n_groups)
+    mean = np.zeros((n_groups, 2))
+    for i in range(n):
+        g = owner[i]
+        counts[g] += 1.0
+        mean[g, 0] += pts[i, 0]
+        mean[g, 1] += pts[i, 1]
+    dist = np.zeros(n_groups)
+    for g in range(n_groups):
+        mean[g] /= max(counts[g], 1.0)
+    for i in range(n):
+        g = owner[i]
+        dist[g] += math.sqrt((pts[i, 0] - mean[g, 0]) ** 2 + (pts[i, 1] - mean[g, 1]) ** 2)
+    scale = np.empty(n_groups)
+    for g in range(n_groups):
+        scale[g] = math.sqrt(2.0) / max(dist[g] / max(counts[g], 1.0), 1e-12)
+    S = np.zeros((n_groups, 6, 6))
+    d = np.empty(6)
+    for i in range(n):
+        g = owner[i]
+        x = (pts[i, 0] - mean[g, 0]) * scale[g]
+        y = (pts[i, 1] - mean[g, 1]) * scale[g]
+        d[0], d[1], d[2], d[3], d[4], d[5] = x * x, x * y, y * y, x, y, 1.0
+        for a in range(6):
+            for b in range(a, 6):
+                S[g, a, b] += d[a] * d[b]
+    for g in range(n_groups):
+        for a in range(6):
+            for b in range(a):
+                S[g, a, b] = S[g, b, a]
+    return counts, mean, scale, S
