@@ -230,7 +230,8 @@ def detect_target(image: np.ndarray, target: Target, params: DetectionParams = D
     if checkerboard and target.checkerboards:
         from .checkerboard import find_checkerboard
 
-        corners = find_checkerboard(np.clip(gray, 0, 255).astype(np.uint8), target, det)
+        grey8 = image if image.ndim == 2 and image.dtype == np.uint8 else np.clip(gray, 0, 255).astype(np.uint8)
+        corners = find_checkerboard(grey8, target, det)
         if corners is None and not target.rings:
             det.reason = "checkerboard not found"
             return det
