@@ -120,3 +120,31 @@ def test_group_moments_match_numpy() -> None:
         D = np.stack([q[:, 0] ** 2, q[:, 0] * q[:, 1], q[:, 1] ** 2, q[:, 0], q[:, 1], np.ones(len(q))], 1)
         assert np.allclose(mean[g], m, rtol=1e-13) and np.isclose(scale[g], sc, rtol=1e-13)
         assert np.allclose(S[g], D.T @ D, rtol=1e-12, atol=1e-12)
+
+
+def test_detection_uses_one_compiled_version_of_each_kernel() -> None:
+    """numba compiles a kernel once per argument type (seconds each on a cold cache): whatever
+    the detection passes (float32 or float64 profiles, read-only views), each kernel runs one
+    version, the one ``compile_all`` (make venv) builds. In a fresh process: other tests may
+    call the kernels with other types."""
+    import subprocess
+    import sys
+
+    code = """
+import numpy as np
+from pascal_calib_ros.detect import edge_kernels as K
+from pascal_calib_ros.detect.target_detector import detect_target
+from pascal_calib_ros.geometry import conic_kernels as CK
+from pascal_calib_ros.sim.session import SessionSpec, render_session_views
+from pascal_calib_ros.targets import resolve_target
+K.compile_all()
+for name in ("ring_a4", "ring_grid_a4", "pascal_board_a3"):
+    _, views = render_session_views(resolve_target(name), SessionSpec(width=640, height=480, views=1, seed=4))
+    img = views[0].image
+    for im in (img, img.astype(np.float32), img.astype(np.uint16) * 257):
+        assert detect_target(im, resolve_target(name)).ok
+print([len(f.signatures) for f in (K.fit_step_rows, K.fit_band_rows, CK.refine_ellipse, CK.group_conic_moments)])
+"""
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip().splitlines()[-1] == "[1, 1, 1, 1]", r.stdout

@@ -363,3 +363,26 @@ def fit_band_rows(prof: np.ndarray, S: np.ndarray, start: np.ndarray, iterations
     for row in range(n):
         _fit_band_row(prof[row], S[row], start[row], iterations, out[row], small)
     return out
+
+
+def compile_all() -> float:
+    """Compile every kernel the detection uses (or load it from numba's cache), so that the first
+    frame does not pay for it: about 10 s of CPU on a cold cache, 0.5 s from the cache. Returns
+    the seconds it took (``python -m pascal_calib_ros.detect.edge_kernels``; ``make venv`` runs it)."""
+    import time
+
+    from ..geometry import conic_kernels
+
+    t = time.perf_counter()
+    prof = np.linspace(0.0, 1.0, 26).reshape(2, 13)
+    S = np.ascontiguousarray(np.broadcast_to(np.linspace(-3.0, 3.0, 13), (2, 13)))
+    fit_step_rows(prof, S, 1.0, 1)
+    fit_band_rows(prof, S, np.ones((2, 3)), 1)
+    pts = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0], [0.7, 0.7], [-0.7, 0.7]])
+    conic_kernels.refine_ellipse(np.array([0.0, 0.0, 1.0, 1.0, 0.0]), pts, 1)
+    conic_kernels.group_conic_moments(pts, np.zeros(len(pts), np.int64), 1)
+    return time.perf_counter() - t
+
+
+if __name__ == "__main__":
+    print(f"detection kernels compiled or loaded from numba's cache in {compile_all():.1f} s")

@@ -60,9 +60,10 @@ def sample_profiles(image: np.ndarray, pts: np.ndarray, normals: np.ndarray, off
 
 
 def _rows64(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
-    """``a`` broadcast to ``shape`` as a C-contiguous float64 array: the one argument type the
-    compiled kernels are built for (one compilation, cached)."""
-    return np.ascontiguousarray(np.broadcast_to(np.asarray(a, np.float64), shape))
+    """``a`` broadcast to ``shape`` as a C-contiguous, writeable float64 array: the one argument
+    type the compiled kernels are built for (numba compiles one version per type; a read-only
+    view, as ``np.broadcast_to`` gives, would be another)."""
+    return np.require(np.broadcast_to(np.asarray(a, np.float64), shape), np.float64, ["C", "W"])
 
 
 def fit_step_profiles(prof: np.ndarray, s: np.ndarray, w0: float = 1.0, iterations: int = 8

@@ -105,8 +105,8 @@ def fit_conics_algebraic(pts: np.ndarray, owner: np.ndarray, n_groups: int) -> t
     empty groups and groups of fewer than 5 points included, hold zeros)."""
     from . import conic_kernels
 
-    counts, mean, scale, S = conic_kernels.group_conic_moments(np.ascontiguousarray(pts, np.float64),
-                                                               np.ascontiguousarray(owner, np.int64), int(n_groups))
+    counts, mean, scale, S = conic_kernels.group_conic_moments(np.require(pts, np.float64, ["C", "W"]),
+                                                               np.require(owner, np.int64, ["C", "W"]), int(n_groups))
     S1, S2, S3 = S[:, :3, :3], S[:, :3, 3:], S[:, 3:, 3:]  # Σ D1ᵀD1, D1ᵀD2, D2ᵀD2 per group
     ok = counts >= 5
     ok &= np.abs(np.linalg.det(S3)) > 1e-12 * np.maximum(np.abs(S3).max(axis=(1, 2)) ** 3, 1e-300)
@@ -212,7 +212,7 @@ def fit_conic(pts: np.ndarray, refine: bool = True, iterations: int = 10) -> np.
     from . import conic_kernels
 
     start = np.array([e.cx, e.cy, e.a, e.b, e.angle])
-    params = conic_kernels.refine_ellipse(start, np.ascontiguousarray(pts, np.float64), int(iterations))
+    params = conic_kernels.refine_ellipse(start, np.require(pts, np.float64, ["C", "W"]), int(iterations))
     return Ellipse(*(float(v) for v in params)).to_conic()
 
 

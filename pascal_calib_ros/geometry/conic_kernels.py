@@ -2,7 +2,8 @@
 refinement of an ellipse's five parameters on the Sampson distance of the points.
 
 The iteration is the one numpy ran (forward-difference Jacobian with steps 1e-6 x the semi-axis a
-for centre and axes and 1e-6 rad for the angle, the least-squares step by LAPACK's SVD solver,
+for centre and axes and 1e-6 rad for the angle, the least-squares step (numpy: LAPACK's SVD
+solver; here the column-scaled normal equations, which compile in a tenth of the time),
 stop when a step would make an axis non-positive or raise the cost, or when the cost stops
 falling); numpy spent ~50 µs of call overhead on every one of the 7 residual evaluations per
 iteration, which made a 700-point fit cost 3 ms instead of ~0.1 ms.
@@ -48,6 +49,52 @@ def _sampson(p: np.ndarray, pts: np.ndarray, out: np.ndarray) -> float:
 
 
 @njit(cache=True)
+def _gauss_newton_step(J: np.ndarray, r: np.ndarray, step: np.ndarray) -> bool:
+    """The least-squares step J step = -r by the normal equations with the columns scaled to unit
+    norm (Jacobi: centre and axes move by pixels, the angle by radians), solved by Cholesky.
+    False when JᵀJ is singular or not finite (the caller stops there)."""
+    n, k = J.shape
+    A = np.zeros((k, k))
+    g = np.zeros(k)
+    for i in range(n):
+        for a in range(k):
+            g[a] -= J[i, a] * r[i]
+            for b in range(a + 1):
+                A[a, b] += J[i, a] * J[i, b]
+    d = np.empty(k)
+    for a in range(k):
+        if not (A[a, a] > 0 and math.isfinite(A[a, a])):
+            return False
+        d[a] = 1.0 / math.sqrt(A[a, a])
+    L = np.zeros((k, k))
+    for a in range(k):
+        for b in range(a + 1):
+            t = A[a, b] * d[a] * d[b]
+            for q in range(b):
+                t -= L[a, q] * L[b, q]
+            if a == b:
+                if not t > 1e-14:  # the scaled matrix has a unit diagonal: rank-deficient
+                    return False
+                L[a, a] = math.sqrt(t)
+            else:
+                L[a, b] = t / L[b, b]
+    y = np.empty(k)
+    for a in range(k):
+        t = g[a] * d[a]
+        for q in range(a):
+            t -= L[a, q] * y[q]
+        y[a] = t / L[a, a]
+    for a in range(k - 1, -1, -1):
+        t = y[a]
+        for q in range(a + 1, k):
+            t -= L[q, a] * y[q]
+        y[a] = t / L[a, a]
+    for a in range(k):
+        step[a] = y[a] * d[a]
+    return True
+
+
+@njit(cache=True)
 def refine_ellipse(start: np.ndarray, pts: np.ndarray, iterations: int) -> np.ndarray:
     """Gauss-Newton on the Sampson distances of ``pts`` (N, 2) over (cx, cy, a, b, angle) from
     ``start``; at most ``iterations`` steps. Returns the parameters (5,)."""
@@ -56,8 +103,7 @@ def refine_ellipse(start: np.ndarray, pts: np.ndarray, iterations: int) -> np.nd
     scale = max(params[2], 1e-9)
     r, rk = np.empty(n), np.empty(n)
     J = np.empty((n, 5))
-    dp, new = np.empty(5), np.empty(5)
-    rcond = np.finfo(np.float64).eps * max(n, 5)  # numpy's lstsq default (rcond=None)
+    dp, new, step = np.empty(5), np.empty(5), np.empty(5)
     prev = np.inf
     for _ in range(iterations):
         cost = _sampson(params, pts, r)
@@ -68,9 +114,8 @@ def refine_ellipse(start: np.ndarray, pts: np.ndarray, iterations: int) -> np.nd
             _sampson(dp, pts, rk)
             for i in range(n):
                 J[i, k] = (rk[i] - r[i]) / h
-        if not (np.all(np.isfinite(J)) and np.all(np.isfinite(r))):
-            break  # numpy's SVD would fail on these (LinAlgError)
-        step = np.linalg.lstsq(J, -r, rcond)[0]
+        if not (np.all(np.isfinite(J)) and np.all(np.isfinite(r)) and _gauss_newton_step(J, r, step)):
+            break
         for k in range(5):
             new[k] = params[k] + step[k]
         if new[2] <= 0 or new[3] <= 0:
