@@ -90,18 +90,29 @@ def _detected(img: np.ndarray, target: Target) -> bool:
 
 def _detect_and_canny(img: np.ndarray, target: Target, reps: int) -> tuple[float, float, float, float]:
     """Medians over ``reps`` runs of ``detect_target`` and of one ``cv2.Canny(img, 50, 150)``,
-    interleaved (detection, Canny, detection, ...) so that both see the same load: wall times
-    (s) and CPU times of the process (s, all threads: OpenCV's Canny runs on every core), the
-    latter unaffected by other processes sharing the cores. Returns (detect wall, Canny wall,
-    detect CPU, Canny CPU)."""
+    interleaved (detection, Canny, detection, ...) so that both see the same load: wall times (s)
+    with OpenCV's threads as configured (Canny runs on every core), then CPU times of the calling
+    thread with OpenCV on one thread (the work each does; other processes on a shared machine
+    barely move it, while they can make a parallel Canny's wall time several times longer).
+    Returns (detect wall, Canny wall, detect CPU, Canny CPU)."""
     wall: list[list[float]] = [[], []]
     cpu: list[list[float]] = [[], []]
+    runs = (lambda: detect_target(img, target), lambda: cv2.Canny(img, 50, 150))
     for _ in range(reps):
-        for k, run in enumerate((lambda: detect_target(img, target), lambda: cv2.Canny(img, 50, 150))):
-            t, c = time.perf_counter(), time.process_time()
+        for k, run in enumerate(runs):
+            t = time.perf_counter()
             run()
             wall[k].append(time.perf_counter() - t)
-            cpu[k].append(time.process_time() - c)
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        for _ in range(reps):
+            for k, run in enumerate(runs):
+                c = time.thread_time()
+                run()
+                cpu[k].append(time.thread_time() - c)
+    finally:
+        cv2.setNumThreads(threads)
     d_wall, c_wall, d_cpu, c_cpu = (float(np.median(v)) for v in (*wall, *cpu))
     return d_wall, c_wall, d_cpu, c_cpu
 
@@ -137,7 +148,8 @@ def detection_table(reps: int, views: int, print_table: bool = True) -> list[dic
 def _print_detection_table(rows: list[dict[str, Any]], views: int) -> None:
     sizes = [f"{w}x{h}" for w, h in SIZES]
     print(f"detection per frame, ms (median of {views} views; slowest view in brackets), and its ratio to one "
-          "cv2.Canny pass over the same frame: wall time | CPU time (median over the views; interleaved runs):")
+          "cv2.Canny pass over the same frame: wall time | single-thread CPU time (median over the views; "
+          "interleaved runs):")
     print(f"{'target':<18}" + "".join(f"{s:>34}" for s in sizes))
     for name in shipped_targets():
         cells = []
