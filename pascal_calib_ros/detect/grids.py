@@ -99,6 +99,13 @@ def label_lattice(centres: np.ndarray, sizes: np.ndarray) -> dict[int, tuple[int
     if found is None:
         raise GridError("no element with four grid neighbours: not a grid, or too few circles visible")
     seed, u0, v0 = found
+    return _grow_lattice(centres, sizes, seed, u0, v0)
+
+
+def _grow_lattice(centres: np.ndarray, sizes: np.ndarray, seed: int, u0: np.ndarray, v0: np.ndarray
+                  ) -> dict[int, tuple[int, int]]:
+    """Lattice labels grown from ``seed`` (steps ``u0``, ``v0``): each labelled element predicts
+    its four neighbours and takes the candidate found unambiguously near the prediction."""
     labels: dict[int, tuple[int, int]] = {seed: (0, 0)}
     # the growth in Python floats (numpy's per-call cost dominates 2-vectors), the nearest two
     # candidates of each prediction by one pass over all of them
@@ -155,6 +162,24 @@ def label_lattice(centres: np.ndarray, sizes: np.ndarray) -> dict[int, tuple[int
     return labels
 
 
+def _complete_elements(target: Target, grid: CircleGrid, idx_of: list[int], fits: list[EdgeFit | None]
+                       ) -> list[tuple[int, np.ndarray, np.ndarray, float, float]]:
+    """(circle index, points, conic, median blur, rms) of every measured edge of the elements
+    whose edges were all measured (a ring counts with both)."""
+    measured = {i for i, f in zip(idx_of, fits, strict=True) if f is not None}
+    kept: list[tuple[int, EdgeFit]] = []
+    for i, f in zip(idx_of, fits, strict=True):
+        outer_idx = i if target.circles[i].dark_inside else i - 1
+        if f is None or outer_idx not in measured or (grid.kind == "ring" and outer_idx + 1 not in measured):
+            continue
+        kept.append((i, f))
+    if not kept:
+        return []
+    owner = np.repeat(np.arange(len(kept)), [len(f.width) for _, f in kept])  # each edge's median blur, at once
+    widths = group_medians(np.concatenate([f.width for _, f in kept]), owner, len(kept)).tolist()
+    return [(i, f.points, f.conic, wd, f.rms) for (i, f), wd in zip(kept, widths, strict=True)]
+
+
 def detect_grid(gray: np.ndarray, work: np.ndarray, blobs: list, target: Target, grid_index: int,
                 max_blur: float, spacing: float, curvature_correction: bool, border_margin: float
                 ) -> tuple[list[tuple[int, np.ndarray, np.ndarray, float, float]], str]:
@@ -202,7 +227,6 @@ def detect_grid(gray: np.ndarray, work: np.ndarray, blobs: list, target: Target,
     else:
         raise GridError(f"found a {span_i} x {span_j} lattice, larger than the {grid.cols} x {grid.rows} grid "
                         "(another grid or clutter in view?)")
-    edges: list[tuple[int, np.ndarray, np.ndarray, float, float]] = []
     dropped = 0
     # one batched measurement for all edges; the profile window must not reach the next edge
     ellipses, windows, idx_of, look_outside, partners = [], [], [], [], []
@@ -239,17 +263,7 @@ def detect_grid(gray: np.ndarray, work: np.ndarray, blobs: list, target: Target,
     fits = refine_edges_batch(work, conics, np.array(windows), spacing=2 * spacing, max_width=max_blur,
                               curvature_correction=curvature_correction, look_outside=np.array(look_outside),
                               partners=np.array(partners, int))
-    measured = {i for i, f in zip(idx_of, fits, strict=True) if f is not None}
-    kept: list[tuple[int, EdgeFit]] = []
-    for i, f in zip(idx_of, fits, strict=True):
-        outer_idx = i if target.circles[i].dark_inside else i - 1
-        if f is None or outer_idx not in measured or (grid.kind == "ring" and outer_idx + 1 not in measured):
-            continue  # an element counts only with all its edges measured
-        kept.append((i, f))
-    if kept:  # each edge's median blur, all at once
-        owner = np.repeat(np.arange(len(kept)), [len(f.width) for _, f in kept])
-        widths = group_medians(np.concatenate([f.width for _, f in kept]), owner, len(kept)).tolist()
-        edges = [(i, f.points, f.conic, wd, f.rms) for (i, f), wd in zip(kept, widths, strict=True)]
+    edges = _complete_elements(target, grid, idx_of, fits)
     dropped += len({i if target.circles[i].dark_inside else i - 1 for i in idx_of}) - len(
         {e[0] for e in edges if target.circles[e[0]].dark_inside})
     note = f"{dropped} element(s) dropped (at the border or edge not measurable)" if dropped else ""
