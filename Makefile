@@ -14,6 +14,7 @@ $(STAMP): requirements.txt setup.py setup.cfg package.xml
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -r requirements.txt
 	$(PY) -m pip install --quiet --no-deps -e .
+	$(PY) -m pascal_calib_ros.detect.edge_kernels  # compile the detection kernels once (numba caches them)
 	touch $(STAMP)
 
 demo: $(STAMP)

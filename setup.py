@@ -17,7 +17,8 @@ setup(
         ("share/" + package_name + "/config/targets", glob("config/targets/*.yaml")),
     ],
     # pip installs; a ROS install gets these from package.xml through rosdep (rosbags: see README)
-    install_requires=["setuptools", "numpy", "scipy", "opencv-python-headless", "pyyaml", "matplotlib", "rosbags"],
+    install_requires=["setuptools", "numpy", "scipy", "numba", "opencv-python-headless", "pyyaml", "matplotlib",
+                      "rosbags"],
     zip_safe=True,
     maintainer="pascal_calib_ros maintainers",
     maintainer_email="maintainers@pascal-calib.invalid",

@@ -36,9 +36,9 @@ import numpy as np
 from pascal_calib_ros.detect.checkerboard import find_checkerboard
 from pascal_calib_ros.detect.detection import Detection
 from pascal_calib_ros.io.images import read_grey
-from pascal_calib_ros.studies.bench import bench_frames
 from pascal_calib_ros.sim.render import RenderedView
 from pascal_calib_ros.sim.session import SessionSpec, render_session_views, session_views
+from pascal_calib_ros.studies.bench import bench_frames
 from pascal_calib_ros.targets import Checkerboard, Target, resolve_target
 
 SIZES = ((640, 480), (800, 600), (1920, 1080), (2456, 2058))

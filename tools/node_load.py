@@ -55,30 +55,68 @@ def run_load(seconds: float, rate: float = 10.0, width: int = 2456, height: int 
              progress: bool = False) -> LoadResult:
     """Publish ``frames`` distinct renders in a loop at ``rate`` Hz for ``seconds`` to a fresh
     calibration node (reliable QoS) and measure it."""
+    return run_load_streams(seconds, 1, rate, width, height, frames, domain_id, log_dir, csv_path, progress)[0]
+
+
+@dataclass
+class _Stream:
+    """One camera's stream: a calibration node and the client publishing to it, in their own
+    ROS domain (two cameras are two nodes on the same machine, sharing its cores)."""
+
+    node: NodeProcess
+    client: RosClient
+    pub: Any
+    status: list[Any]
+
+    def kv(self) -> dict[str, str]:
+        return {v.key: v.value for v in self.status[-1].status[0].values} if self.status else {}
+
+
+def _open_stream(dom: int, log: Path, name: str) -> _Stream:
     from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import Image
+
+    node = NodeProcess("calibration_node", {"max_views": 40, "min_views": 8}, dom, log)
+    client = RosClient(dom, name)
+    status: list[Any] = []
+    client.node.create_subscription(DiagnosticArray, "/pascal_calib/status", status.append, 10)
+    pub = client.node.create_publisher(Image, "/image", QoSProfile(depth=2, reliability=ReliabilityPolicy.RELIABLE,
+                                                                   history=HistoryPolicy.KEEP_LAST))
+    return _Stream(node, client, pub, status)
+
+
+def run_load_streams(seconds: float, streams: int = 1, rate: float = 10.0, width: int = 2456, height: int = 2058,
+                     frames: int = 12, domain_id: int | None = None, log_dir: Path = Path("/tmp"),
+                     csv_path: Path | None = None, progress: bool = False) -> list[LoadResult]:
+    """:func:`run_load` for ``streams`` cameras at once: one calibration node per stream (each in
+    its own ROS domain), all fed at ``rate`` Hz from this process; one result per stream (the
+    CSV and the progress lines follow the first)."""
     from sensor_msgs.msg import Image
     from std_msgs.msg import Header
 
     spec = SessionSpec(width=width, height=height, views=frames, k1=-0.1, seed=99)
     _, views = render_session_views(resolve_target("ring_a4"), spec)
     payloads = [np.ascontiguousarray(v.image).tobytes() for v in views]
-    dom = domain_id if domain_id is not None else random.randint(1, 100)
-    node = NodeProcess("calibration_node", {"max_views": 40, "min_views": 8}, dom,
-                       log_dir / "load_calibration_node.log")
-    client = RosClient(dom, "load_publisher")
-    status: list[Any] = []
+    dom = domain_id if domain_id is not None else random.randint(1, 100 - streams)
+    opened: list[_Stream] = []
     try:
-        client.node.create_subscription(DiagnosticArray, "/pascal_calib/status", status.append, 10)
-        pub = client.node.create_publisher(Image, "/image", QoSProfile(depth=2, reliability=ReliabilityPolicy.RELIABLE,
-                                                                       history=HistoryPolicy.KEEP_LAST))
-        if not client.spin_until(lambda: pub.get_subscription_count() > 0 and bool(status), 30):
-            raise RuntimeError("calibration node did not come up:\n" + node.log())
+        for k in range(streams):
+            log = log_dir / ("load_calibration_node.log" if streams == 1 else f"load_calibration_node_{k}.log")
+            opened.append(_open_stream(dom + k, log, f"load_publisher_{k}"))
+        for st in opened:
+            if not st.client.spin_until(lambda st=st: st.pub.get_subscription_count() > 0 and bool(st.status), 30):
+                raise RuntimeError("calibration node did not come up:\n" + st.node.log())
 
-        def kv() -> dict[str, str]:
-            return {v.key: v.value for v in status[-1].status[0].values} if status else {}
+        def spin_all(until: float) -> None:  # every client's callbacks (status) until a deadline
+            while True:
+                for st in opened:
+                    st.client.executor.spin_once(timeout_sec=0.0)
+                if time.monotonic() >= until:
+                    return
+                time.sleep(min(0.005, max(0.0, until - time.monotonic())))
 
-        rss: list[tuple[float, float]] = []
+        rss: list[list[tuple[float, float]]] = [[] for _ in opened]
         writer = None
         fcsv = open(csv_path, "w", newline="") if csv_path else None
         if fcsv:
@@ -88,38 +126,39 @@ def run_load(seconds: float, rate: float = 10.0, width: int = 2456, height: int 
         n = 0
         next_sample = t0
         while time.monotonic() - t0 < seconds:
-            t_pub = t0 + n / rate
-            def due(t_pub: float = t_pub) -> bool:
-                return time.monotonic() >= t_pub
-
-            client.spin_until(due, max(0.0, t_pub - time.monotonic()) + 0.1)
-            msg = Image(header=Header(frame_id="camera", stamp=client.node.get_clock().now().to_msg()),
-                        height=height, width=width, encoding="mono8", is_bigendian=0, step=width)
-            msg.data = payloads[n % len(payloads)]
-            pub.publish(msg)
+            spin_all(t0 + n / rate)
+            for k, st in enumerate(opened):
+                msg = Image(header=Header(frame_id=f"camera_{k}", stamp=st.client.node.get_clock().now().to_msg()),
+                            height=height, width=width, encoding="mono8", is_bigendian=0, step=width)
+                msg.data = payloads[(n + 5 * k) % len(payloads)]
+                st.pub.publish(msg)
             n += 1
             now = time.monotonic()
             if now >= next_sample:
                 next_sample = now + 5.0
-                m = _rss_mb(node.proc.pid)
-                rss.append((now - t0, m))
-                s = kv()
+                for k, st in enumerate(opened):
+                    rss[k].append((now - t0, _rss_mb(st.node.proc.pid)))
+                s = opened[0].kv()
                 if writer:
                     writer.writerow([f"{now - t0:.1f}", n, s.get("frames_received"), s.get("frames_dropped"),
-                                     s.get("frames_bad"), s.get("views_accepted"), f"{m:.1f}"])
+                                     s.get("frames_bad"), s.get("views_accepted"), f"{rss[0][-1][1]:.1f}"])
                     assert fcsv is not None
                     fcsv.flush()
                 if progress:
                     print(f"  t={now - t0:6.0f}s published={n} received={s.get('frames_received')} "
-                          f"dropped={s.get('frames_dropped')} rss={m:.0f}MB", flush=True)
+                          f"dropped={s.get('frames_dropped')} rss={rss[0][-1][1]:.0f}MB", flush=True)
         elapsed = time.monotonic() - t0
-        client.spin_until(lambda: False, 2.0)  # drain and let the status catch up
-        s = kv()
-        received, dropped = int(s.get("frames_received", 0)), int(s.get("frames_dropped", 0))
-        rss.append((elapsed, _rss_mb(node.proc.pid)))
+        spin_all(time.monotonic() + 2.0)  # drain and let the status catch up
         if fcsv:
             fcsv.close()
-        return LoadResult(elapsed, n, received, dropped, (received - dropped) / elapsed, rss)
+        out = []
+        for k, st in enumerate(opened):
+            s = st.kv()
+            received, dropped = int(s.get("frames_received", 0)), int(s.get("frames_dropped", 0))
+            rss[k].append((elapsed, _rss_mb(st.node.proc.pid)))
+            out.append(LoadResult(elapsed, n, received, dropped, (received - dropped) / elapsed, rss[k]))
+        return out
     finally:
-        client.close()
-        node.stop()
+        for st in opened:
+            st.client.close()
+            st.node.stop()

@@ -77,10 +77,14 @@ def cmd_study(args: argparse.Namespace) -> int:
 
         model_bias_study(Path(args.out), views=args.views or 12)
         return EXIT_OK
+    if args.name == "stereo":
+        from ..studies.stereo_study import stereo_study
+
+        stereo_study(Path(args.out), args.views or 15, args.seed, args.draws, args.sessions or 5)
+        return EXIT_OK
     from ..studies.study import run_study
 
-    run_study(args.name, Path(args.out), views=args.views, seed=args.seed, draws=args.draws,
-              sessions=args.sessions or 5)
+    run_study(args.name, Path(args.out), views=args.views, seed=args.seed)
     return EXIT_OK
 
 

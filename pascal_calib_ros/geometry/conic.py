@@ -103,18 +103,11 @@ def fit_conics_algebraic(pts: np.ndarray, owner: np.ndarray, n_groups: int) -> t
     """:func:`fit_conic_algebraic` for many point sets at once (rows of ``pts`` grouped by
     ``owner``, sorted): conics (G, 3, 3) and a mask of groups that gave an ellipse (the others,
     empty groups and groups of fewer than 5 points included, hold zeros)."""
-    counts = np.bincount(owner, minlength=n_groups).astype(float)
-    safe = np.maximum(counts, 1.0)
-    mean = group_sums(pts, owner, n_groups) / safe[:, None]
-    dist = np.linalg.norm(pts - mean[owner], axis=1)
-    scale = np.sqrt(2) / np.maximum(group_sums(dist, owner, n_groups) / safe, 1e-12)
-    p = (pts - mean[owner]) * scale[owner, None]
-    x, y = p[:, 0], p[:, 1]
-    D1 = np.stack([x * x, x * y, y * y], 1)
-    D2 = np.stack([x, y, np.ones_like(x)], 1)
-    S1 = group_sums(D1[:, :, None] * D1[:, None, :], owner, n_groups)
-    S2 = group_sums(D1[:, :, None] * D2[:, None, :], owner, n_groups)
-    S3 = group_sums(D2[:, :, None] * D2[:, None, :], owner, n_groups)
+    from . import conic_kernels
+
+    counts, mean, scale, S = conic_kernels.group_conic_moments(np.require(pts, np.float64, ["C", "W"]),
+                                                               np.require(owner, np.int64, ["C", "W"]), int(n_groups))
+    S1, S2, S3 = S[:, :3, :3], S[:, :3, 3:], S[:, 3:, 3:]  # Σ D1ᵀD1, D1ᵀD2, D2ᵀD2 per group
     ok = counts >= 5
     ok &= np.abs(np.linalg.det(S3)) > 1e-12 * np.maximum(np.abs(S3).max(axis=(1, 2)) ** 3, 1e-300)
     S3 = np.where(ok[:, None, None], S3, np.eye(3))
@@ -175,6 +168,27 @@ def ellipses_from_conics(C: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return out, ok
 
 
+def conics_from_ellipses(par: np.ndarray) -> np.ndarray:
+    """:meth:`Ellipse.to_conic` for (G, 5) ellipses (cx, cy, a, b, angle) at once: (G, 3, 3)
+    normalised conics."""
+    par = np.asarray(par, float).reshape(-1, 5)
+    cx, cy, a, b, ang = par.T
+    c, s = np.cos(ang), np.sin(ang)
+    ia, ib = 1 / a**2, 1 / b**2
+    A = np.empty((len(par), 2, 2))
+    A[:, 0, 0] = c * c * ia + s * s * ib
+    A[:, 0, 1] = A[:, 1, 0] = c * s * (ia - ib)
+    A[:, 1, 1] = s * s * ia + c * c * ib
+    ctr = np.stack([cx, cy], 1)
+    Ac = np.einsum("gij,gj->gi", A, ctr)
+    C = np.zeros((len(par), 3, 3))
+    C[:, :2, :2] = A
+    C[:, :2, 2] = C[:, 2, :2] = -Ac
+    C[:, 2, 2] = np.einsum("gi,gi->g", ctr, Ac) - 1
+    C /= np.linalg.norm(C, axis=(1, 2))[:, None, None]
+    return C * np.where(C[:, 0, 0] + C[:, 1, 1] < 0, -1.0, 1.0)[:, None, None]
+
+
 def sampson_distance(C: np.ndarray, pts: np.ndarray) -> np.ndarray:
     """First-order geometric (Sampson) distance of points to a conic, signed (negative inside)."""
     X = np.concatenate([pts, np.ones((len(pts), 1))], 1)
@@ -186,7 +200,8 @@ def sampson_distance(C: np.ndarray, pts: np.ndarray) -> np.ndarray:
 
 def fit_conic(pts: np.ndarray, refine: bool = True, iterations: int = 10) -> np.ndarray:
     """Algebraic ellipse fit, then geometric refinement (Gauss-Newton on the Sampson distance
-    over the ellipse's 5 parameters). Returns a normalised conic."""
+    over the ellipse's 5 parameters, compiled: :func:`.conic_kernels.refine_ellipse`). Returns a
+    normalised conic."""
     C = fit_conic_algebraic(pts)
     if not refine:
         return C
@@ -194,36 +209,11 @@ def fit_conic(pts: np.ndarray, refine: bool = True, iterations: int = 10) -> np.
         e = Ellipse.from_conic(C)
     except ConicFitError:
         return C
-    params = np.array([e.cx, e.cy, e.a, e.b, e.angle])
-    scale = max(e.a, 1e-9)
-    prev = np.inf
-    for _ in range(iterations):
-        r = _ellipse_residual(params, pts)
-        cost = float(r @ r)
-        J = np.empty((len(pts), 5))
-        for k in range(5):
-            h = 1e-6 * (scale if k < 4 else 1.0)
-            dp = params.copy()
-            dp[k] += h
-            J[:, k] = (_ellipse_residual(dp, pts) - r) / h
-        try:
-            step = np.linalg.lstsq(J, -r, rcond=None)[0]
-        except np.linalg.LinAlgError:
-            break
-        new = params + step
-        if new[2] <= 0 or new[3] <= 0:
-            break
-        if float(np.sum(_ellipse_residual(new, pts) ** 2)) > cost:
-            break
-        params = new
-        if prev - cost < 1e-14 * max(cost, 1e-30):
-            break
-        prev = cost
-    return Ellipse(*params).to_conic()
+    from . import conic_kernels
 
-
-def _ellipse_residual(p: np.ndarray, pts: np.ndarray) -> np.ndarray:
-    return sampson_distance(Ellipse(*p).to_conic(), pts)
+    start = np.array([e.cx, e.cy, e.a, e.b, e.angle])
+    params = conic_kernels.refine_ellipse(start, np.require(pts, np.float64, ["C", "W"]), int(iterations))
+    return Ellipse(*(float(v) for v in params)).to_conic()
 
 
 @dataclass(frozen=True)
@@ -311,11 +301,12 @@ def conic_image_of_circle(H: np.ndarray, center: tuple[float, float], radius: fl
 def ray_conic_nearest(C: np.ndarray, P: np.ndarray, N: np.ndarray) -> np.ndarray:
     """Per row, the offset s of the intersection of the ray P + s N with the conic C (one (3, 3)
     per row) nearest to P; NaN where the line misses it."""
-    d = np.concatenate([N, np.zeros((len(N), 1))], 1)
-    X = np.concatenate([P, np.ones((len(P), 1))], 1)
-    qa = np.einsum("ni,nij,nj->n", d, C, d)
-    qb = np.einsum("ni,nij,nj->n", d, C, X)
-    qc = np.einsum("ni,nij,nj->n", X, C, X)
+    nx, ny, px, py = N[:, 0], N[:, 1], P[:, 0], P[:, 1]
+    c00, c01, c02, c11, c12, c22 = C[:, 0, 0], C[:, 0, 1], C[:, 0, 2], C[:, 1, 1], C[:, 1, 2], C[:, 2, 2]
+    gx, gy = c00 * px + c01 * py + c02, c01 * px + c11 * py + c12  # (C X)[:2] for a symmetric C
+    qa = c00 * nx * nx + 2 * c01 * nx * ny + c11 * ny * ny  # dᵀ C d, d = (N, 0)
+    qb = nx * gx + ny * gy  # dᵀ C X
+    qc = px * gx + py * gy + (c02 * px + c12 * py + c22)  # Xᵀ C X
     disc = qb * qb - qa * qc
     sq = np.sqrt(np.where(disc >= 0, disc, np.nan))
     with np.errstate(divide="ignore", invalid="ignore"):

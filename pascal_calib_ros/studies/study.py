@@ -460,10 +460,8 @@ def lenses(out: Path, views: int, seed: int, cases: tuple[str, ...] = ("equidist
     return rows
 
 
-def run_study(name: str, out: Path, views: int | None = None, seed: int = 1, draws: int = 10, sessions: int = 5
-              ) -> None:
-    """Run a study; ``views`` None: 20 for ``lenses``, 15 for the others; ``draws`` and
-    ``sessions``: the stereo study's noise draws (and new sessions) and its accuracy sessions."""
+def run_study(name: str, out: Path, views: int | None = None, seed: int = 1) -> None:
+    """Run a study; ``views`` None: 20 for ``lenses``, 15 for the others."""
     if name == "accuracy":
         accuracy(out, views or 15, seed)
     elif name == "edge-bias":
@@ -474,9 +472,5 @@ def run_study(name: str, out: Path, views: int | None = None, seed: int = 1, dra
         target_shape(out, views or 15, seed)
     elif name == "lenses":
         lenses(out, views or 20, seed)
-    elif name == "stereo":
-        from ..studies.stereo_study import stereo_study
-
-        stereo_study(out, views or 15, seed, draws, sessions)
     else:
         raise ValueError(f"unknown study {name!r}")

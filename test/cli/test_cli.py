@@ -84,6 +84,11 @@ def test_bench_json_shape() -> None:
     assert [d["size"] for d in data["detect"]] == ["800x600", "1920x1080", "2456x2058", "1024x768 grid of 70 discs"]
     assert all(d["detect_ms"] > 0 and d["canny_ms"] > 0 for d in data["detect"])
     assert [c["views"] for c in data["calibrate"]] == [3, 10, 20, 20]
+    # every shipped target at every size, with its ratio to a Canny pass over the same frames
+    rows = data["detect_targets"]
+    assert len(rows) == 5 * 3 and all(r["found"] == r["views"] for r in rows), rows
+    assert all(r["canny_ms"] > 0 and 0 < r["ratio"] <= r["max_ratio"] for r in rows)
+    assert data["first_detection"][0]["seconds"] > 0
 
 
 def test_target_shape_of_a_bent_sheet(tmp_path: Path) -> None:

@@ -5,6 +5,7 @@ from types import SimpleNamespace
 import cv2
 import numpy as np
 import pytest
+from encoded_images import YUV422, encode_grey, pack_rows
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -14,6 +15,7 @@ from pascal_calib_ros.io.image_msgs import (
     compressed_to_grey,
     grey_to_image_fields,
     image_to_grey,
+    supported_encodings_text,
 )
 
 
@@ -52,10 +54,100 @@ def test_bayer_is_demosaiced() -> None:
     assert {"bayer_bggr8", "bayer_gbrg16", "mono8", "rgba8"} <= set(SUPPORTED_ENCODINGS)
 
 
+_YUV_TO_GREY = {"uyvy": cv2.COLOR_YUV2GRAY_UYVY, "yuv422": cv2.COLOR_YUV2GRAY_UYVY,
+                "yuyv": cv2.COLOR_YUV2GRAY_YUY2, "yuv422_yuy2": cv2.COLOR_YUV2GRAY_YUY2,
+                "nv12": cv2.COLOR_YUV2GRAY_NV12, "nv21": cv2.COLOR_YUV2GRAY_NV21}
+
+
+@pytest.mark.parametrize("pad", [0, 5, 64])
+@pytest.mark.parametrize("enc", sorted(_YUV_TO_GREY))
+def test_yuv_gives_opencvs_luma(enc: str, pad: int) -> None:
+    """Random bytes in the encoding's layout: the grey image is OpenCV's YUV2GRAY of them (the Y
+    samples), and a colour image converted by OpenCV to YUV comes back as its luma."""
+    rng = np.random.default_rng(3)
+    h, w = 30, 42
+    raw = rng.integers(0, 256, (h, 2 * w) if enc in YUV422 else (h + h // 2, w), dtype=np.uint8)
+    step, data = pack_rows(raw, pad)
+    m = SimpleNamespace(height=h, width=w, encoding=enc, step=step, is_bigendian=0, data=data)
+    ref = cv2.cvtColor(raw.reshape(h, w, 2) if enc in YUV422 else raw, _YUV_TO_GREY[enc])
+    out = image_to_grey(m)
+    assert out.dtype == np.uint8 and out.shape == (h, w) and np.array_equal(out, ref)
+    if enc in YUV422:  # OpenCV's own BGR -> YUV 4:2:2, then back to BGR: the luma matches
+        bgr = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+        to_yuv = cv2.COLOR_BGR2YUV_UYVY if YUV422[enc] == 1 else cv2.COLOR_BGR2YUV_YUY2
+        packed = cv2.cvtColor(bgr, to_yuv)
+        step, data = pack_rows(packed.reshape(h, -1), pad)
+        m = SimpleNamespace(height=h, width=w, encoding=enc.upper(), step=step, is_bigendian=0, data=data)
+        assert np.array_equal(image_to_grey(m), packed[..., YUV422[enc]])
+
+
+@pytest.mark.parametrize("big", [False, True])
+@pytest.mark.parametrize("enc", ["rgb16", "bgr16", "rgba16", "bgra16"])
+def test_16_bit_colour(enc: str, big: bool) -> None:
+    """16-bit colour -> 16-bit grey: OpenCV's conversion of the 16-bit pixels, and the 8-bit
+    reference scaled by 257 within one 8-bit level."""
+    rng = np.random.default_rng(4)
+    bgr8 = rng.integers(0, 256, (25, 33, 3), dtype=np.uint8)
+    grey8 = cv2.cvtColor(bgr8, cv2.COLOR_BGR2GRAY)
+    bgr16 = bgr8.astype(np.uint16) * 257  # the full 8-bit range onto the full 16-bit range
+    order = {"rgb16": [2, 1, 0], "bgr16": [0, 1, 2], "rgba16": [2, 1, 0], "bgra16": [0, 1, 2]}[enc]
+    arr = bgr16[..., order]
+    if enc.endswith("a16"):
+        arr = np.dstack([arr, rng.integers(0, 65536, (25, 33), dtype=np.uint16)])  # alpha: ignored
+    m = _msg(np.ascontiguousarray(arr), enc, pad=6, big=big)
+    out = image_to_grey(m)
+    assert out.dtype == np.uint16 and out.shape == (25, 33)
+    assert np.array_equal(out, cv2.cvtColor(bgr16, cv2.COLOR_BGR2GRAY))
+    assert np.abs(out.astype(float) / 257 - grey8).max() <= 0.51  # the 8-bit result rounds
+
+
+@settings(max_examples=150, deadline=None)
+@given(half_h=st.integers(1, 12), half_w=st.integers(1, 15), pad=st.integers(0, 9), big=st.booleans(),
+       enc=st.sampled_from([e for e in SUPPORTED_ENCODINGS if not e.startswith("bayer")]), seed=st.integers(0, 99))
+def test_every_encoding_carries_a_grey_image(half_h: int, half_w: int, pad: int, big: bool, enc: str,
+                                             seed: int) -> None:
+    """A grey image written in any encoding (colour: equal channels; YUV: random chroma; 16-bit:
+    grey x 257, either byte order; padded rows) comes back exactly."""
+    grey = np.random.default_rng(seed).integers(0, 256, (2 * half_h, 2 * half_w), dtype=np.uint8)
+    out = image_to_grey(encode_grey(grey, enc, pad, big, seed))
+    deep = out.dtype == np.uint16
+    assert deep == ("16" in enc)
+    assert np.array_equal(out, grey.astype(np.uint16) * 257 if deep else grey)
+
+
+@pytest.mark.parametrize(
+    ("enc", "change", "message"),
+    [
+        ("yuv422", {"width": 31, "step": 62}, "needs an even width, got 31"),
+        ("yuv422_yuy2", {"step": 50}, "step 50 is smaller than the 80 bytes"),
+        ("uyvy", {"data": bytes(100)}, "data has 100 bytes"),
+        ("nv12", {"height": 19}, "needs an even width and height, got 40x19"),
+        ("nv21", {"data": bytes(40 * 20)}, r"data has 800 bytes; 40x20 nv21 with step 40 needs 1200 \(30 rows\)"),
+        ("nv12", {"step": 39}, "step 39 is smaller"),
+        ("rgb16", {"step": 200}, "step 200 is smaller than the 240 bytes"),
+        ("bgra16", {"data": bytes(6399)}, "data has 6399 bytes"),
+    ],
+)
+def test_bad_yuv_and_16_bit_messages(enc: str, change: dict, message: str) -> None:
+    m = encode_grey(np.zeros((20, 40), np.uint8), enc)
+    for k, v in change.items():
+        setattr(m, k, v)
+    with pytest.raises(ImageConversionError, match=message):
+        image_to_grey(m)
+
+
+def test_the_list_of_encodings_is_quoted_by_the_error() -> None:
+    for enc in ("yuv422", "yuv422_yuy2", "uyvy", "yuyv", "nv12", "nv21", "rgb16", "bgr16", "rgba16", "bgra16"):
+        assert enc in SUPPORTED_ENCODINGS
+    with pytest.raises(ImageConversionError) as e:
+        image_to_grey(SimpleNamespace(height=2, width=2, encoding="32FC1", step=8, is_bigendian=0, data=bytes(16)))
+    assert supported_encodings_text() in str(e.value) and "nv12" in str(e.value)
+
+
 @pytest.mark.parametrize(
     ("change", "message"),
     [
-        ({"encoding": "yuv422"}, "unsupported encoding"),
+        ({"encoding": "nv24"}, "unsupported encoding"),
         ({"step": 10}, "step 10 is smaller"),
         ({"data": b"\x00" * 100}, "data has 100 bytes"),
         ({"height": 0}, "empty image"),

@@ -39,7 +39,7 @@ def _malformed_images(rng: np.random.Generator, n: int) -> list:
     from sensor_msgs.msg import Image
 
     out = []
-    encodings = ["mono8", "rgb8", "bgra8", "mono16", "bayer_rggb8", "yuv422", "32FC1", "", "jpeg"]
+    encodings = ["mono8", "rgb8", "bgra8", "mono16", "bayer_rggb8", "yuv422", "nv12", "rgb16", "32FC1", "", "jpeg"]
     for k in range(n):
         h, w = int(rng.integers(0, 64)), int(rng.integers(0, 64))
         enc = encodings[k % len(encodings)]
