@@ -88,8 +88,31 @@ def accuracy(out: Path, views: int, seed: int) -> list[dict[str, Any]]:
                 rows.append({"scenario": sc.name, "method": label, "views": res.n_used, **err, "rms": res.rms})
             except CalibrationError as e:
                 rows.append({"scenario": sc.name, "method": label, "views": 0, "error": str(e)})
+        rows.append({"scenario": sc.name, **_opencv_own_board(cam, board, board_imgs)})
     _write(rows, out, "accuracy")
     return rows
+
+
+def _opencv_own_board(cam: Camera, board: Any, imgs: list[np.ndarray]) -> dict[str, Any]:
+    """What OpenCV users get on the same checkerboard renders: their corners
+    (``findChessboardCornersSB`` + ``cornerSubPix``, :func:`_board_corners`) and
+    ``cv2.calibrateCamera`` with its default model (k1, k2, p1, p2, k3), one thread."""
+    import cv2
+
+    cb = board.checkerboards[0]
+    obj = np.c_[cb.corner_points(), np.zeros(len(cb.corner_points()))].astype(np.float32)
+    found = [c for c in (_board_corners(im, cb.inner_corners, True) for im in imgs) if c is not None]
+    label = "OpenCV's own (SB + cornerSubPix, calibrateCamera)"
+    if len(found) < MIN_VIEWS_OPENCV:
+        return {"method": label, "views": len(found), "error": "board found in fewer than 3 views"}
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        rms, K, D, _, _ = cv2.calibrateCamera([obj] * len(found), [c.astype(np.float32) for c in found],
+                                              (cam.width, cam.height), None, None)
+    finally:
+        cv2.setNumThreads(threads)
+    return {"method": label, "views": len(found), **_errors(cam, K, np.asarray(D).ravel()), "rms": float(rms)}
 
 
 def edge_bias(out: Path, views: int, seed: int) -> list[dict[str, Any]]:

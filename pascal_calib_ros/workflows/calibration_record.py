@@ -3,10 +3,13 @@ marginal covariance of the estimated intrinsics and the observed field, for ``ca
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..analysis.assessment import Assessment
 from ..calibrate.result import CalibrationResult
+from ..calibrate.rig import RigResult
 from ..geometry.image_field import view_hulls
 from ..io.calibration_json import CalibrationRecord
 
@@ -35,3 +38,15 @@ def record_of_calibration(a: Assessment, camera_name: str = "camera", note: str 
     return CalibrationRecord(camera=res.camera(), camera_name=camera_name, distortion_choice=res.distortion_model,
                              parameters=names, covariance=cov, view_hulls=hulls, rms_px=float(res.rms),
                              views_used=res.n_used, projection_uncertainty=summary, note=note)
+
+
+def record_of_rig_camera(rig: RigResult, c: int, a: Assessment, camera_name: str) -> CalibrationRecord:
+    """The record of camera ``c`` of a jointly calibrated rig (``a``: its assessment,
+    :func:`~..analysis.rig.assess_rig`): its intrinsics' covariance is their block of the joint
+    sandwich covariance, i.e. their marginal with the rig's transforms and every shot's pose
+    estimated too."""
+    rec = record_of_calibration(a, camera_name, note=f"camera {rig.names[c]!r} of a rig of {len(rig.names)} "
+                                                     "calibrated jointly")
+    sub, lo, hi = rig.problem.subs[c], int(rig.problem.intr_start[c]), int(rig.problem.intr_start[c + 1])
+    cov = None if rig.covariance is None else np.asarray(rig.covariance[lo:hi, lo:hi], float).copy()
+    return replace(rec, parameters=tuple(sub.names[i] for i in sub.free), covariance=cov)

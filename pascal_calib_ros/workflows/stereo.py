@@ -31,6 +31,7 @@ from ..detect.target_detector import detect_target
 from ..errors import PascalCalibError
 from ..geometry.camera import rectified_projection
 from ..geometry.rectify import StereoRectification, rectify_pair
+from ..io.calibration_json import sidecar_path, write_calibration_json
 from ..io.camera_yaml import CameraInfoData, write_camera_yaml
 from ..io.images import ImageReadError, read_grey
 from ..io.stereo_yaml import (
@@ -43,6 +44,7 @@ from ..io.stereo_yaml import (
     write_stereo_yaml,
 )
 from ..targets import Target
+from .calibration_record import record_of_rig_camera
 
 
 class PairingError(PascalCalibError):
@@ -197,7 +199,8 @@ def stereo_from_detections(dets: list[list[Detection]], target: Target, options:
     files: list[Path] = []
     if out_dir is not None:
         files = [*write_pair_yamls(Path(out_dir), left, right, rect, options.camera_name),
-                 write_stereo_yaml(Path(out_dir) / "stereo.yaml", sd)]
+                 write_stereo_yaml(Path(out_dir) / "stereo.yaml", sd),
+                 *write_rig_records(rig, Path(out_dir), [f"{options.camera_name}/{n}" for n in ("left", "right")])]
     sr, st = rig.extrinsic_sigma[1]
     lines = ["shots:", *_shot_lines(rig), *rig.summary_lines(),
              f"X_right = R X_left + T: T = [{', '.join(f'{v:.6f}' for v in E.translation)}] m "
@@ -209,6 +212,15 @@ def stereo_from_detections(dets: list[list[Detection]], target: Target, options:
         lines.append("wrote " + ", ".join(str(f) for f in files))
     lines += ["publish the right optical frame with:", "  " + sd.static_transform()]
     return StereoOutcome(rig, rect, epi, sd, files, lines)
+
+
+def write_rig_records(rig: RigResult, out: Path, camera_names: list[str]) -> list[Path]:
+    """``NAME.calibration.json`` beside each camera's ``NAME.yaml`` in ``out`` (NAME the rig's camera
+    name): what ``pascal-calib verify`` and ``export`` read, with each camera's intrinsics'
+    covariance from the joint fit (:func:`~.calibration_record.record_of_rig_camera`)."""
+    assessed = assess_rig(rig)
+    return [write_calibration_json(sidecar_path(out / f"{n}.yaml"), record_of_rig_camera(rig, c, assessed[c], cn))
+            for c, (n, cn) in enumerate(zip(rig.names, camera_names, strict=True))]
 
 
 @dataclass
@@ -234,6 +246,7 @@ def rig_from_detections(dets: list[list[Detection]], target: Target, names: list
         files.append(write_camera_yaml(out / f"{n}.yaml", info))
         cams.append(RigCameraData(n, frames[c], f"{n}.yaml", rig.pose_in_reference(c), *rig.pose_sigma[c]))
     files.append(write_rig_yaml(out / "rig.yaml", cams, int(np.sum(rig.used.any(0)))))
+    files += write_rig_records(rig, out, names)
     lines = ["shots:", *_shot_lines(rig), *rig.summary_lines()]
     for c in range(1, len(names)):
         sr, st = rig.pose_sigma[c]

@@ -9,6 +9,7 @@ import pytest
 from rig_sessions import rendered, rendered_three, rotation_error_deg
 
 from pascal_calib_ros.cli import main
+from pascal_calib_ros.io.calibration_json import read_calibration_json
 from pascal_calib_ros.io.camera_yaml import read_camera_yaml
 from pascal_calib_ros.io.stereo_yaml import read_rig_yaml, read_stereo_yaml
 from pascal_calib_ros.sim.rig import write_rig
@@ -72,6 +73,14 @@ def test_stereo_command_writes_the_pair(tmp_path: Path, capsys: pytest.CaptureFi
     assert right.P[0, 3] < 0 and left.P[0, 3] == 0
     assert (out / "report" / "left" / "report.pdf").is_file() and (out / "report" / "right" / "report.json").is_file()
     assert (out / "report" / "stereo.pdf").is_file() and (out / "report" / "stereo.png").is_file()
+    # each camera's record (what verify and export read): its intrinsics' covariance from the joint fit
+    for c, name in enumerate(("left", "right")):
+        rec = read_calibration_json(out / f"{name}.calibration.json")
+        assert rec.camera_name == f"head/{name}" and rec.covariance is not None
+        truth = s.spec.cameras[c].camera
+        for i, p in enumerate(("fx", "fy", "cx", "cy")):
+            err = rec.camera.K.ravel()[(0, 4, 2, 5)[i]] - truth.K.ravel()[(0, 4, 2, 5)[i]]
+            assert 0 < rec.std[p] < 1.0 and abs(err) < 4 * rec.std[p] + 0.05, (name, p, err, rec.std[p])
     # bad input: exit 2 and nothing written
     bad = main(["stereo", "--target", "ring_grid_a4", "--left", str(tmp_path / "none"), "--right",
                 str(tmp_path / "in" / "right"), "-o", str(tmp_path / "out2")])
@@ -92,6 +101,7 @@ def test_rig_command_connects_cameras_transitively(tmp_path: Path, capsys: pytes
     assert code == 0, text
     cams = read_rig_yaml(out / "rig.yaml")
     assert [c.name for c in cams] == ["a", "b", "c"] and all((out / c.yaml_file).is_file() for c in cams)
+    assert all(read_calibration_json(out / f"{c.name}.calibration.json").covariance is not None for c in cams)
     for c in (1, 2):
         truth = s.spec.cameras[c].pose
         dt = 1000 * (cams[c].pose.translation - truth.translation)
