@@ -1,18 +1,7 @@
 """How far a calibration can be trusted: honest parameter covariances and projection uncertainty.
 
-- **Correlated edge residuals.** Neighbouring edge points share pixels and blur (and neighbouring
-  checkerboard corners share the sub-pixel locator's bias), so n points hold fewer than n
-  independent measurements. The integrated autocorrelation time kappa = 1 + 2 sum_k rho_k of the
-  residual sequences along each contour (Geyer's initial positive sequence; Geyer 1992, "Practical
-  Markov chain Monte Carlo", Stat. Sci. 7) is the factor by which the variance of a slowly varying
-  weighted sum of them exceeds the white-noise value.
-- **Parameter covariance.** The fit minimises an unweighted robust loss rho (soft-L1) of the
-  residuals, while the noise differs between views (contrast, blur, JPEG) and between edges and
-  corners. The covariance of such an M-estimate is the sandwich A^-1 B A^-1 with
-  A = J^T diag(psi'(r)) J and B = sum_g c_g J_g^T J_g over groups g (the edge rows and the corner
-  rows of each view), c_g = kappa_kind mean_g(psi(r)^2) the group's variance of the loss's
-  derivative psi = rho' times its correlation factor (Huber 1981, "Robust Statistics", sec. 7.6;
-  White 1980, Econometrica 48, for the heteroscedastic groups). For least squares psi = r, psi' = 1.
+- **Parameter covariance**: the M-estimator's sandwich over groups of correlated residuals,
+  :mod:`..calibrate.covariance` (its docstring has the math and the sources).
 - **Projection uncertainty** (mrcal, "Projection uncertainty"): the pixel of a point at a given
   range is uncertain through the intrinsics *and* through the camera's placement relative to the
   views, which the calibration estimates jointly. As mrcal does, the point is carried into every
