@@ -57,8 +57,10 @@ def test_mrcal_calibration_is_near_the_truth_within_its_own_sigma(session) -> No
         assert abs(est - true) < 4 * std[name], f"{name}: {est:.3f} vs truth {true:.3f}, sigma {std[name]:.3f}"
     assert abs(ans["intrinsics"]["D"][0] - truth.D[0]) < 4 * std["D"][0]
     assert ans["distortion_model"] == "plumb_bob" and len(ans["intrinsics"]["D"]) == 5
-    # clean renders: nothing to reject, a noise of a few hundredths of a pixel, sigma finite everywhere
-    assert ans["n_outliers"] <= 2 and len(ans["outliers_per_view"]) == len(corners)
+    # clean renders: a noise of a hundredth of a pixel, so mrcal's threshold (a few times that noise)
+    # may drop some corners of the most tilted views, whose true error reaches 0.07 px: a few per cent
+    n_corners = sum(len(c) for c in corners)
+    assert ans["n_outliers"] <= 0.03 * n_corners and len(ans["outliers_per_view"]) == len(corners)
     assert 0.005 < ans["noise_px"] < 0.1
     assert np.all(np.isfinite(ans["sigma_at_distance"])) and np.all(np.isfinite(ans["sigma_at_infinity"]))
     assert 0.3 < ans["distance_m"] < 1.5
