@@ -1,0 +1,1 @@
+"""analysis layer (see /work/shared/DESIGN.md)."""

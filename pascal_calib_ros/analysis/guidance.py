@@ -1,0 +1,333 @@
+"""What a candidate view would add to a calibration: the projection uncertainty over the whole
+image that would follow if it were captured, predicted from the current estimate.
+
+**The figure of merit.** mrcal's projection uncertainty (:mod:`..calibrate.uncertainty`): a
+pixel's ray, at the views' median distance d, carried into every view's target frame, averaged
+back and projected with the perturbed parameters. To first order the average of the views'
+perturbed poses moves the point by a rigid motion, dp = w x p + tau, with
+w = (1/N) sum_i W_i drv_i and tau = (1/N) sum_i (dt_i + t_i x W_i drv_i) (W_i maps a change of
+view i's rotation vector to the small rotation it makes: dR_i R_i^T = [W_i drv_i]x). So the
+pixel moves by G(u) dr with dr = (free intrinsics, w, tau) = L dx and
+G(u) = [dq/dintrinsics, -dq/dX [p]x, dq/dX] (2 x k). Its covariance is G (L Sigma L^T) G^T and
+its standard deviation in the worst direction sqrt(lambda_max). Only the k x k matrix
+L Sigma L^T depends on the views; G is computed once per calibration, analytically
+(:func:`..geometry.camera.project_with_jacobians`), on the grid of
+:func:`..calibrate.diagnostics.grid_pixels` over the whole image. (dq/dX scales as 1/d: a
+candidate that changes the median distance rescales the tau columns.)
+
+**A new view.** Sigma is the sandwich A^-1 B A^-1 (:func:`..calibrate.uncertainty.sandwich_covariance`;
+A = J^T W J, B = J^T W V W J, V the rows' variances: kappa s_g^2). A view n adds rows J_n =
+[Jg_n, Jv_n] (globals, its own pose): A' = [[A + E^T U E, E^T Gv], [Gv^T, Ann]] with
+U = Jg^T Jg, Gv = Jg^T Jv, Ann = Jv^T Jv, and B' likewise with the rows' variances. With L'
+the readout over N + 1 views, Z = A'^-1 L'^T is found by eliminating the new pose (its Schur
+complement on the globals, S = U - Gv Ann^-1 Gv^T) and the Woodbury identity on the old
+problem, (A + E^T S E)^-1 = A^-1 - A^-1 E^T (I + S H)^-1 S E A^-1 with H = E A^-1 E^T, so that
+every candidate costs a few products of (P x globals) and (globals x k) matrices; then
+L' Sigma' L'^T = Z_o^T B Z_o + Z_n'^T B_n Z_n' (Z_n' = [E Z_o; Z_n]). This is the approach of
+Calibration Wizard (Peng & Sturm, ICCV 2019: Schur complement of the next pose's Jacobian,
+the intrinsics' expected covariance), of pose_calib (Rojtberg & Kuijper, ISMAR 2018) and
+AprilCal (Richardson, Strom & Olson, IROS 2013: the worst expected reprojection error over the
+image as the score, stopping at the accuracy asked for), here with the sandwich covariance,
+mrcal's whole-image projection uncertainty and the circles' edges as the measurements.
+
+The candidate's rows are synthesised at the current estimate (:mod:`.view_synthesis`); their
+noise is the median of the current views' per-row variances of that kind (edges, corners), the
+correlation factor kappa included. Nothing here is a measurement: **done** is decided on the
+real projection uncertainty recomputed after a view was captured, never on a prediction.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..calibrate.diagnostics import grid_pixels, grid_shape
+from ..calibrate.refine import Problem, RefineResult, ViewData
+from ..calibrate.uncertainty import row_variances
+from ..geometry.camera import Camera, project_with_jacobians
+
+
+@dataclass(frozen=True)
+class Linearisation:
+    """A solved problem at its solution: what the prediction needs (plain data).
+
+    ``var`` (rows,) the rows' variances (V of the sandwich), ``w`` their IRLS weights; ``extra``
+    (e, P) further linear readouts of the parameters reported beside the projection (e.g. the
+    hand-eye transform's six parameters), ``extra_rows`` per new view (e, per_view): zero unless
+    the readout depends on a view's own pose."""
+
+    problem: Problem
+    x: np.ndarray
+    intr0: np.ndarray
+    var: np.ndarray
+    w: np.ndarray
+    model: str  # the lens model's ROS name
+    extra: np.ndarray | None = None
+
+    @staticmethod
+    def of_refinement(res: RefineResult) -> Linearisation:
+        """The linearisation behind a :class:`RefineResult` (its problem, solution and noise)."""
+        if res.x is None or res.problem is None or res.intr0 is None:
+            raise ValueError("the refinement carries no solution to predict from")
+        prob = res.problem
+        f, _, _ = prob.evaluate(res.x, res.intr0, jac=False)
+        w = prob.robust_weights(f, prob.loss_scale)
+        var = np.ones(len(f))
+        n_img = prob.n_edge + 2 * prob.n_corner
+        var[:n_img] = row_variances(prob, prob.views, f, w, len(res.x))
+        return Linearisation(prob, res.x, res.intr0, var, w, res.model)
+
+
+def rotation_maps(prob: Problem, x: np.ndarray, intr0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per view W_i (V, 3, dof - 3): the small rotation per unit change of its rotation
+    parameters (dR R^T = [W drv]x), and the translations t_i (V, 3)."""
+    poses = prob.unpack(x, intr0)[2]
+    return pose_rotation_maps(prob, poses)
+
+
+def pose_rotation_maps(prob: Problem, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`rotation_maps` of pose parameter rows (V, dof)."""
+    R, dR, t = prob.rotations(np.asarray(poses, float).reshape(-1, prob.dof))
+    S = dR @ np.transpose(R, (0, 2, 1))[:, None]  # (V, nr, 3, 3) skew matrices
+    W = np.stack([S[..., 2, 1], S[..., 0, 2], S[..., 1, 0]], -1)  # (V, nr, 3)
+    return np.transpose(W, (0, 2, 1)), t
+
+
+def pose_readout(W: np.ndarray, t: np.ndarray, per_view: int) -> np.ndarray:
+    """(V, 6, per_view): rows (w, tau) of the rigid motion a change of each view's parameters
+    makes, dp = w x p + tau, w = W drv, tau = dt + t x W drv (module docstring)."""
+    nv, _, nr = W.shape
+    out = np.zeros((nv, 6, per_view))
+    out[:, :3, :nr] = W
+    tx = np.zeros((nv, 3, 3))
+    tx[:, 0, 1], tx[:, 0, 2], tx[:, 1, 2] = -t[:, 2], t[:, 1], -t[:, 0]
+    tx[:, 1, 0], tx[:, 2, 0], tx[:, 2, 1] = t[:, 2], -t[:, 1], t[:, 0]
+    out[:, 3:, :nr] = tx @ W
+    out[:, 3:, nr:nr + 3] = np.eye(3)
+    return out
+
+
+def sigma_worst_direction(G: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """sqrt(lambda_max(G C G^T)) per pixel: G (M, 2, k), C (..., k, k) -> (..., M)."""
+    GC = np.einsum("mak,...kl->...mal", G, C)
+    a = np.einsum("...mk,mk->...m", GC[..., 0, :], G[:, 0])
+    b = np.einsum("...mk,mk->...m", GC[..., 0, :], G[:, 1])
+    d = np.einsum("...mk,mk->...m", GC[..., 1, :], G[:, 1])
+    lam = 0.5 * (a + d) + np.sqrt(np.maximum(0.25 * (a - d) ** 2 + b * b, 0.0))
+    return np.sqrt(np.maximum(lam, 0.0))
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """Per candidate: the worst projection sigma over the image (px) and the covariance of the
+    readout (free intrinsics, w, tau, extra) that would follow."""
+
+    sigma_px: np.ndarray  # (C,)
+    readout_cov: np.ndarray  # (C, k, k)
+    distance: np.ndarray  # (C,) m, the median view distance with the candidate
+
+
+class ViewPredictor:
+    """The projection uncertainty now and after one more view (module docstring), for one
+    linearised calibration. ``step`` is the grid's spacing (default: the image's larger side / 40,
+    as :func:`..calibrate.uncertainty.projection_uncertainty`)."""
+
+    def __init__(self, lin: Linearisation, width: int, height: int, step: float | None = None):
+        self.lin, self.width, self.height = lin, width, height
+        prob = self.prob = lin.problem
+        self.step = step or max(width, height) / 40.0
+        f, Jg, Jv = prob.evaluate(lin.x, lin.intr0)
+        self.A, _ = prob.normal_equations(f, Jg, Jv, lin.w)
+        self.B, _ = prob.normal_equations(f, Jg, Jv, lin.w * lin.w * lin.var)
+        self.Ainv = np.linalg.pinv(self.A)
+        self.nI, self.ng, self.pv, self.nv = len(prob.free), prob.ng, prob.per_view, prob.nv
+        W, t = rotation_maps(prob, lin.x, lin.intr0)
+        self.t_views = t
+        size = len(lin.x)
+        Lv = np.zeros((6, size))
+        for i, li in enumerate(pose_readout(W, t, self.pv)):
+            s = self.ng + i * self.pv
+            Lv[:, s:s + self.pv] = li / self.nv
+        EI = np.zeros((self.nI, size))
+        EI[:, :self.nI] = np.eye(self.nI)
+        extra = lin.extra if lin.extra is not None else np.zeros((0, size))
+        self.n_extra = len(extra)
+        self.L = np.concatenate([EI, Lv, extra])  # readout of the current views
+        self.k = len(self.L)
+        self.cov_now = self.L @ self.Ainv @ self.B @ self.Ainv @ self.L.T
+        self.distance_now = float(np.median(np.linalg.norm(t, axis=1)))
+        self.distances = np.linalg.norm(t, axis=1)
+        # with one more view: the old views' share of the mean pose is N / (N + 1)
+        R_o = np.concatenate([EI, Lv * self.nv / (self.nv + 1), extra]).T
+        self.Y0 = self.Ainv @ R_o
+        self.AE = self.Ainv[:, :self.ng]
+        self.H = self.AE[:self.ng]
+        self.Q00 = self.Y0.T @ self.B @ self.Y0
+        BAE = self.B @ self.AE
+        self.Q01 = self.Y0.T @ BAE
+        self.Q11 = self.AE.T @ BAE
+        self.camera = camera_of(prob, lin)
+        self.camera_sized = Camera(self.camera.K, self.camera.D, width, height, self.camera.model)
+        self.pixels, self.G = self._pixel_jacobians(self.step)
+        self.noise = view_noise(prob, lin.var)
+
+    # -- the image ------------------------------------------------------------------------------
+    def _pixel_jacobians(self, step: float) -> tuple[np.ndarray, np.ndarray]:
+        """Grid pixels (M, 2) with a ray, and G (M, 2, k) at unit distance (tau columns x 1/d)."""
+        uv = grid_pixels(self.width, self.height, step)
+        rays = self.camera.unproject(uv)
+        ok = np.all(np.isfinite(rays), 1)
+        uv, rays = uv[ok], rays[ok]
+        _, dX, dI = project_with_jacobians(rays, self.camera.K, self.camera.D, self.camera.lens)
+        G = np.zeros((len(uv), 2, self.k))
+        G[:, :, :self.nI] = dI[:, :, self.prob.free]
+        px = np.zeros((len(uv), 3, 3))
+        px[:, 0, 1], px[:, 0, 2], px[:, 1, 2] = -rays[:, 2], rays[:, 1], -rays[:, 0]
+        px[:, 1, 0], px[:, 2, 0], px[:, 2, 1] = rays[:, 2], -rays[:, 1], rays[:, 0]
+        G[:, :, self.nI:self.nI + 3] = -dX @ px
+        G[:, :, self.nI + 3:self.nI + 6] = dX
+        return uv, G
+
+    def grid_jacobians(self, coarse: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """(pixels, G) of the grid, every ``coarse``-th row and column (the outermost kept)."""
+        rows, cols = grid_shape(self.width, self.height, self.step)
+        uv_all = grid_pixels(self.width, self.height, self.step)
+        keep_r = np.unique(np.r_[np.arange(0, rows, coarse), rows - 1])
+        keep_c = np.unique(np.r_[np.arange(0, cols, coarse), cols - 1])
+        sel = (keep_r[:, None] * cols + keep_c[None, :]).ravel()
+        want = {tuple(p) for p in uv_all[sel]}
+        mask = np.array([tuple(p) in want for p in self.pixels])
+        return self.pixels[mask], self.G[mask]
+
+    def sigma_map(self, cov: np.ndarray, distance: float, G: np.ndarray | None = None) -> np.ndarray:
+        """Per grid pixel the worst-direction sigma (px) for a readout covariance at ``distance``."""
+        G = self.G if G is None else G
+        return sigma_worst_direction(_at_distance(G, self.nI, distance), cov)
+
+    def sigma_now(self) -> float:
+        """The worst projection sigma over the whole image now (px)."""
+        s = self.sigma_map(self.cov_now, self.distance_now)
+        return float(np.max(s)) if len(s) else float("nan")
+
+    # -- one more view ----------------------------------------------------------------------------
+    def predict(self, views: Sequence[ViewData], poses: np.ndarray, weights: Sequence[np.ndarray] | None = None,
+                coarse: int = 1, chain: ChainRows | None = None) -> Prediction:
+        """The projection uncertainty after adding each candidate view (its observations
+        ``views[c]`` at pose parameters ``poses[c]`` (dof,), local frame), one at a time.
+        ``weights[c]`` (rows,) how many real rows each synthetic row stands for; ``coarse``
+        evaluates the grid at every coarse-th row and column only; ``chain`` adds rows per view
+        from a robot chain (:class:`ChainRows`)."""
+        C = len(views)
+        if C == 0:
+            return Prediction(np.zeros(0), np.zeros((0, self.k, self.k)), np.zeros(0))
+        blocks = candidate_blocks(self, views, poses, weights, chain)
+        covs = np.stack([self._updated(*b) for b in blocks])
+        dist = np.array([np.median(np.r_[self.distances, np.linalg.norm(_translation(self.prob, p))]) for p in poses])
+        _, G = self.grid_jacobians(coarse)
+        sig = np.array([np.max(sigma_worst_direction(_at_distance(G, self.nI, d), c)) if len(G) else np.nan
+                        for c, d in zip(covs, dist, strict=True)])
+        return Prediction(sig, covs, dist)
+
+    def _updated(self, UA: np.ndarray, GA: np.ndarray, AA: np.ndarray, UB: np.ndarray, GB: np.ndarray,
+                 AB: np.ndarray, ln: np.ndarray) -> np.ndarray:
+        """L' Sigma' L'^T after a view with information blocks (U, Gv, Ann) of A and of B and
+        new-pose readout ``ln`` (k, per_view) (module docstring)."""
+        Ai = np.linalg.pinv(AA)
+        S = UA - GA @ Ai @ GA.T
+        Rn = ln.T  # (pv, k)
+        r = GA @ Ai @ Rn
+        Mk = r + np.linalg.solve(np.eye(self.ng) + S @ self.H, S @ (self.Y0[:self.ng] - self.H @ r))
+        Zg = self.Y0[:self.ng] - self.H @ Mk
+        Zn = Ai @ (Rn - GA.T @ Zg)
+        old = self.Q00 - self.Q01 @ Mk - Mk.T @ self.Q01.T + Mk.T @ self.Q11 @ Mk
+        new = Zg.T @ UB @ Zg + Zg.T @ GB @ Zn + Zn.T @ GB.T @ Zg + Zn.T @ AB @ Zn
+        out = old + new
+        return 0.5 * (out + out.T)
+
+
+@dataclass(frozen=True)
+class ChainRows:
+    """A robot chain's rows for candidate views: ``rows(poses)`` -> (Jg (V, 6, ng), Jv (V, 6,
+    per_view)) at the candidates' pose parameters, each row of variance ``variance``."""
+
+    rows: object  # Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+    variance: float
+
+
+def _translation(prob: Problem, pose: np.ndarray) -> np.ndarray:
+    return np.asarray(pose, float)[prob.dof - 3:prob.dof]
+
+
+def _at_distance(G: np.ndarray, nI: int, distance: float) -> np.ndarray:
+    out = G.copy()
+    out[:, :, nI + 3:nI + 6] /= max(distance, 1e-9)
+    return out
+
+
+def camera_of(prob: Problem, lin: Linearisation) -> Camera:
+    """The camera of the linearisation's solution."""
+    intr = prob.unpack(lin.x, lin.intr0)[0]
+    K = np.array([[intr[0], intr[4], intr[2]], [0, intr[1], intr[3]], [0, 0, 1.0]])
+    return Camera(K, intr[5:].copy(), 0, 0, lin.model)
+
+
+def view_noise(prob: Problem, var: np.ndarray) -> tuple[float, float]:
+    """Median per-row variance of the current views' edge rows and corner rows (px^2; the
+    correlation factor and the fit's degrees of freedom included)."""
+    n_e, n_c = prob.n_edge, 2 * prob.n_corner
+    e = [float(np.median(var[s])) for s in prob.edge_slices if s.stop > s.start]
+    c = var[n_e:n_e + n_c]
+    per_view_c = [float(np.median(c[np.repeat(prob.view_of_corner, 2) == v])) for v in range(prob.nv)
+                  if np.any(prob.view_of_corner == v)]
+    return (float(np.median(e)) if e else 0.0, float(np.median(per_view_c)) if per_view_c else 0.0)
+
+
+def candidate_problem(prob: Problem, views: Sequence[ViewData]) -> Problem:
+    """A problem of the same layout (free intrinsics, shape, lens, dof, offsets) over ``views``."""
+    free = tuple(prob.names[i] for i in prob.free)
+    from ..calibrate.refine import SHAPE_NAMES
+
+    shape = tuple(SHAPE_NAMES[i] for i in prob.shape_idx)
+    return Problem(list(views), prob.dof, free, prob.use_offsets, prob.loss_scale, shape, prob.frame, prob.lens)
+
+
+def candidate_blocks(pred: ViewPredictor, views: Sequence[ViewData], poses: np.ndarray,
+                     weights: Sequence[np.ndarray] | None, chain: ChainRows | None
+                     ) -> list[tuple[np.ndarray, ...]]:
+    """Per candidate the information blocks (U, Gv, Ann) of A and of B and its pose readout."""
+    prob = pred.prob
+    cp = candidate_problem(prob, views)
+    n = len(views)
+    offs = np.zeros(n)
+    x_c = np.concatenate([pred.lin.x[:prob.n_base],
+                          np.concatenate([np.r_[p, o] if prob.use_offsets else p
+                                          for p, o in zip(np.asarray(poses, float).reshape(n, -1), offs,
+                                                          strict=True)])])
+    _, Jg_b, Jv = cp.evaluate(x_c, pred.lin.intr0)
+    Jg = np.zeros((len(Jg_b), pred.ng))
+    Jg[:, :prob.n_base] = Jg_b
+    var_e, var_c = pred.noise
+    row_var = np.concatenate([np.full(cp.n_edge, var_e), np.full(2 * cp.n_corner, var_c)])
+    wts = np.ones(len(row_var)) if weights is None else np.zeros(len(row_var))
+    if weights is not None:
+        for i, rows in enumerate(cp.rows_of_view):
+            wts[rows] = np.asarray(weights[i], float)
+    W, t = pose_rotation_maps(prob, poses)
+    ln = pose_readout(W, t, pred.pv) / (pred.nv + 1)
+    cj = chain.rows(np.asarray(poses, float)) if chain is not None else None  # type: ignore[operator]
+    out = []
+    for i, rows in enumerate(cp.rows_of_view):
+        g, v, wa = Jg[rows], Jv[rows], wts[rows]
+        wb = wa * row_var[rows]
+        if cj is not None:
+            g = np.concatenate([g, cj[0][i]])
+            v = np.concatenate([v, cj[1][i]])
+            wa = np.r_[wa, np.ones(6)]
+            wb = np.r_[wb, np.full(6, chain.variance)]  # type: ignore[union-attr]
+        gw, vw, gb, vb = g * wa[:, None], v * wa[:, None], g * wb[:, None], v * wb[:, None]
+        lk = np.zeros((pred.k, pred.pv))
+        lk[pred.nI:pred.nI + 6] = ln[i]
+        out.append((g.T @ gw, gw.T @ v, v.T @ vw, g.T @ gb, gb.T @ v, v.T @ vb, lk))
+    return out

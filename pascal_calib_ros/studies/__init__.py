@@ -1,0 +1,1 @@
+"""studies layer (see /work/shared/DESIGN.md)."""

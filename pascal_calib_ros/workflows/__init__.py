@@ -1,0 +1,1 @@
+"""workflows layer (see /work/shared/DESIGN.md)."""
