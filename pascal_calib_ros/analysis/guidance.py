@@ -42,10 +42,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 
 from ..calibrate.diagnostics import grid_pixels, grid_shape
 from ..calibrate.refine import Problem, RefineResult, ViewData
-from ..calibrate.uncertainty import row_variances
 from ..geometry.camera import Camera, project_with_jacobians
 
 
@@ -76,8 +76,25 @@ class Linearisation:
         w = prob.robust_weights(f, prob.loss_scale)
         var = np.ones(len(f))
         n_img = prob.n_edge + 2 * prob.n_corner
-        var[:n_img] = row_variances(prob, prob.views, f, w, len(res.x))
+        var[:n_img] = group_variances(prob, f, w, res.kappa, len(res.x))
         return Linearisation(prob, res.x, res.intr0, var, w, res.model)
+
+
+def group_variances(prob: Problem, f: np.ndarray, w: np.ndarray, kappa: tuple[float, float], n_params: int
+                    ) -> np.ndarray:
+    """:func:`..calibrate.uncertainty.row_variances` with the refinement's correlation factors
+    ``kappa`` (edges, corners) instead of estimating them again: per row kappa s_g^2 N / (N - P),
+    s_g^2 the weighted mean square residual of its view's edge rows or corner rows."""
+    n_e, n_c = prob.n_edge, 2 * prob.n_corner
+    dof_scale = (n_e + n_c) / max(n_e + n_c - n_params, 1)
+    var = np.zeros(n_e + n_c)
+    groups = [(np.arange(s.start, s.stop), kappa[0]) for s in prob.edge_slices]
+    vc = np.repeat(prob.view_of_corner, 2)
+    groups += [(n_e + np.flatnonzero(vc == v), kappa[1]) for v in range(prob.nv)] if n_c else []
+    for rows, kap in groups:
+        if len(rows):
+            var[rows] = kap * dof_scale * float(np.sum(w[rows] * f[rows] ** 2) / len(rows))
+    return var
 
 
 def rotation_maps(prob: Problem, x: np.ndarray, intr0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -141,7 +158,7 @@ class ViewPredictor:
         f, Jg, Jv = prob.evaluate(lin.x, lin.intr0)
         self.A, _ = prob.normal_equations(f, Jg, Jv, lin.w)
         self.B, _ = prob.normal_equations(f, Jg, Jv, lin.w * lin.w * lin.var)
-        self.Ainv = np.linalg.pinv(self.A)
+        self.Ainv = inverse_spd(self.A)
         self.nI, self.ng, self.pv, self.nv = len(prob.free), prob.ng, prob.per_view, prob.nv
         W, t = rotation_maps(prob, lin.x, lin.intr0)
         self.t_views = t
@@ -254,6 +271,16 @@ class ChainRows:
 
     rows: object  # Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
     variance: float
+
+
+def inverse_spd(A: np.ndarray) -> np.ndarray:
+    """The inverse of a symmetric positive definite matrix by Cholesky (the pseudo-inverse if it
+    is singular)."""
+    try:
+        c = scipy.linalg.cho_factor(A)
+        return np.asarray(scipy.linalg.cho_solve(c, np.eye(len(A))))
+    except np.linalg.LinAlgError:
+        return np.linalg.pinv(A)
 
 
 def _translation(prob: Problem, pose: np.ndarray) -> np.ndarray:
