@@ -147,7 +147,7 @@ def default_feasibility(target: Target, width: int, distances: np.ndarray | None
 def line_of_sight_tilt_deg(target: Target, pose: Transform) -> float:
     """Angle (deg) between the sheet's normal and the line of sight to the features' centre."""
     c = feature_centre(target)
-    centre = pose.apply([c[0], c[1], 0.0])
+    centre = pose.apply(np.r_[c, 0.0])
     n = pose.R[:, 2]
     cosang = float(n @ centre) / max(float(np.linalg.norm(centre)), 1e-12)  # < 0: its back faces the camera
     return float(np.degrees(np.arccos(np.clip(cosang, -1.0, 1.0))))
@@ -205,8 +205,8 @@ def smallest_feature_px(target: Target, camera: Camera, R: np.ndarray, t: np.nda
         x0, y0, x1, y1 = b.extent
         s = b.square_size
         corners = np.array([[x0, y0], [x1 - s, y0], [x0, y1 - s], [x1 - s, y1 - s]])  # the four corner squares
-        P = np.concatenate([np.c_[corners, np.zeros(4)], np.c_[corners + [s, 0], np.zeros(4)],
-                            np.c_[corners + [0, s], np.zeros(4)]])
+        P = np.concatenate([np.c_[corners, np.zeros(4)], np.c_[corners + np.array([s, 0.0]), np.zeros(4)],
+                            np.c_[corners + np.array([0.0, s]), np.zeros(4)]])
         q = _project_poses(camera, R, t, P).reshape(C, 3, 4, 2)
         sides = np.minimum(np.linalg.norm(q[:, 1] - q[:, 0], axis=2), np.linalg.norm(q[:, 2] - q[:, 0], axis=2))
         sq = np.minimum(sq, sides.min(1))

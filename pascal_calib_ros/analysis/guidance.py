@@ -38,7 +38,7 @@ real projection uncertainty recomputed after a view was captured, never on a pre
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -269,7 +269,7 @@ class ChainRows:
     """A robot chain's rows for candidate views: ``rows(poses)`` -> (Jg (V, 6, ng), Jv (V, 6,
     per_view)) at the candidates' pose parameters, each row of variance ``variance``."""
 
-    rows: object  # Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+    rows: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
     variance: float
 
 
@@ -343,8 +343,8 @@ def candidate_blocks(pred: ViewPredictor, views: Sequence[ViewData], poses: np.n
             wts[rows] = np.asarray(weights[i], float)
     W, t = pose_rotation_maps(prob, poses)
     ln = pose_readout(W, t, pred.pv) / (pred.nv + 1)
-    cj = chain.rows(np.asarray(poses, float)) if chain is not None else None  # type: ignore[operator]
-    out = []
+    cj = chain.rows(np.asarray(poses, float)) if chain is not None else None
+    out: list[tuple[np.ndarray, ...]] = []
     for i, rows in enumerate(cp.rows_of_view):
         g, v, wa = Jg[rows], Jv[rows], wts[rows]
         wb = wa * row_var[rows]
@@ -352,7 +352,7 @@ def candidate_blocks(pred: ViewPredictor, views: Sequence[ViewData], poses: np.n
             g = np.concatenate([g, cj[0][i]])
             v = np.concatenate([v, cj[1][i]])
             wa = np.r_[wa, np.ones(6)]
-            wb = np.r_[wb, np.full(6, chain.variance)]  # type: ignore[union-attr]
+            wb = np.r_[wb, np.full(6, chain.variance if chain is not None else 1.0)]
         gw, vw, gb, vb = g * wa[:, None], v * wa[:, None], g * wb[:, None], v * wb[:, None]
         lk = np.zeros((pred.k, pred.pv))
         lk[pred.nI:pred.nI + 6] = ln[i]
