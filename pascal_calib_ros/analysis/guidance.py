@@ -31,8 +31,9 @@ image as the score, stopping at the accuracy asked for), here with the sandwich 
 mrcal's whole-image projection uncertainty and the circles' edges as the measurements.
 
 The candidate's rows are synthesised at the current estimate (:mod:`.view_synthesis`); their
-noise is the median of the current views' per-row variances of that kind (edges, corners), the
-correlation factor kappa included. Nothing here is a measurement: **done** is decided on the
+noise is modelled from the current views' per-row variances (the correlation factor kappa
+included): the edges' as a power of the imaged circles' size (:class:`NoiseModel`), the corners'
+as their median. Nothing here is a measurement: **done** is decided on the
 real projection uncertainty recomputed after a view was captured, never on a prediction.
 """
 
@@ -188,7 +189,7 @@ class ViewPredictor:
         self.camera = camera_of(prob, lin)
         self.camera_sized = Camera(self.camera.K, self.camera.D, width, height, self.camera.model)
         self.pixels, self.G = self._pixel_jacobians(self.step)
-        self.noise = view_noise(prob, lin.var)
+        self.noise = fit_noise_model(prob, lin.var)
 
     # -- the image ------------------------------------------------------------------------------
     def _pixel_jacobians(self, step: float) -> tuple[np.ndarray, np.ndarray]:
@@ -300,15 +301,60 @@ def camera_of(prob: Problem, lin: Linearisation) -> Camera:
     return Camera(K, intr[5:].copy(), 0, 0, lin.model)
 
 
-def view_noise(prob: Problem, var: np.ndarray) -> tuple[float, float]:
-    """Median per-row variance of the current views' edge rows and corner rows (px^2; the
-    correlation factor and the fit's degrees of freedom included)."""
+def semi_minor_px(view: ViewData) -> float:
+    """Median over a view's circles of the semi-minor axis (px) of its edge points (evenly spread
+    along the arc, their covariance has eigenvalues a^2 / 2 and b^2 / 2); NaN without circles."""
+    ids = view.circle_ids
+    if len(ids) == 0:
+        return float("nan")
+    order = np.argsort(ids, kind="stable")
+    cuts = np.flatnonzero(np.diff(ids[order])) + 1
+    out = []
+    for g in np.split(order, cuts):
+        if len(g) >= 4:
+            p = view.points[g] - view.points[g].mean(0)
+            out.append(np.sqrt(2 * max(float(np.linalg.eigvalsh(p.T @ p / len(g))[0]), 0.0)))
+    return float(np.median(out)) if out else float("nan")
+
+
+@dataclass(frozen=True)
+class NoiseModel:
+    """Per-row variance (px^2) of a view's edge rows as a power of its circles' imaged size,
+    log var = a + b log(semi-minor axis), fitted over the captured views (small, flat, tilted
+    ellipses measure worse: on a ring grid a view of 6 px semi-minor axes is ten times noisier
+    than one of 10 px), kept within the observed range (x0.5 .. x2); the corners' median."""
+
+    a: float
+    b: float
+    lo: float
+    hi: float
+    corner: float
+
+    def edge_variance(self, semi_minor: float) -> float:
+        if not np.isfinite(semi_minor) or semi_minor <= 0:
+            return float(np.exp(self.a))  # the fit's value at 1 px: only when b is 0
+        return float(np.clip(np.exp(self.a + self.b * np.log(semi_minor)), self.lo, self.hi))
+
+
+def fit_noise_model(prob: Problem, var: np.ndarray) -> NoiseModel:
+    """:class:`NoiseModel` of the current views (slope 0, the median, when fewer than 4 views or
+    their sizes hardly differ; the slope kept within [-4, 0])."""
     n_e, n_c = prob.n_edge, 2 * prob.n_corner
-    e = [float(np.median(var[s])) for s in prob.edge_slices if s.stop > s.start]
+    v_e = np.array([float(np.median(var[s])) for s in prob.edge_slices if s.stop > s.start])
+    b_e = np.array([semi_minor_px(prob.views[i]) for i, s in enumerate(prob.edge_slices) if s.stop > s.start])
     c = var[n_e:n_e + n_c]
     per_view_c = [float(np.median(c[np.repeat(prob.view_of_corner, 2) == v])) for v in range(prob.nv)
                   if np.any(prob.view_of_corner == v)]
-    return (float(np.median(e)) if e else 0.0, float(np.median(per_view_c)) if per_view_c else 0.0)
+    corner = float(np.median(per_view_c)) if per_view_c else 0.0
+    if not len(v_e):
+        return NoiseModel(0.0, 0.0, 0.0, 0.0, corner)
+    ok = np.isfinite(b_e) & (b_e > 0) & (v_e > 0)
+    lv, lb = np.log(v_e[ok]), np.log(b_e[ok])
+    slope = 0.0
+    if ok.sum() >= 4 and np.ptp(lb) > 0.1:
+        slope = float(np.clip(np.polyfit(lb, lv, 1)[0], -4.0, 0.0))
+    a = float(np.median(lv - slope * lb)) if ok.any() else float(np.log(max(np.median(v_e), 1e-12)))
+    return NoiseModel(a, slope, 0.5 * float(v_e.min()), 2.0 * float(v_e.max()), corner)
 
 
 def candidate_problem(prob: Problem, views: Sequence[ViewData]) -> Problem:
@@ -335,8 +381,10 @@ def candidate_blocks(pred: ViewPredictor, views: Sequence[ViewData], poses: np.n
     _, Jg_b, Jv = cp.evaluate(x_c, pred.lin.intr0)
     Jg = np.zeros((len(Jg_b), pred.ng))
     Jg[:, :prob.n_base] = Jg_b
-    var_e, var_c = pred.noise
-    row_var = np.concatenate([np.full(cp.n_edge, var_e), np.full(2 * cp.n_corner, var_c)])
+    noise = pred.noise
+    row_var = np.concatenate([np.zeros(cp.n_edge), np.full(2 * cp.n_corner, noise.corner)])
+    for i, sl in enumerate(cp.edge_slices):
+        row_var[sl] = noise.edge_variance(semi_minor_px(views[i]))
     wts = np.ones(len(row_var)) if weights is None else np.zeros(len(row_var))
     if weights is not None:
         for i, rows in enumerate(cp.rows_of_view):
