@@ -26,6 +26,7 @@ from .geometry.transform import Transform
 from .io.camera_yaml import CameraInfoData, write_camera_yaml
 from .io.images import ImageReadError, expand_image_args, read_grey
 from .targets import Target, TargetError, resolve_target
+from .workflows.suggest import add_parser as add_suggest_parser
 
 EXIT_OK, EXIT_CALIB, EXIT_INPUT = 0, 1, 2
 
@@ -590,6 +591,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--views", type=int, default=None, help="default: 15 (lenses: 20 per lens)")
     s.add_argument("--seed", type=int, default=1)
     s.set_defaults(func=cmd_study)
+
+    add_suggest_parser(sub)
     return ap
 
 
