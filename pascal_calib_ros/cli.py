@@ -325,6 +325,11 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 def cmd_study(args: argparse.Namespace) -> int:
+    if args.name == "guided":
+        from .studies.guided_study import run_guided_study
+
+        run_guided_study(Path(args.out), seeds=args.seeds, quick=args.quick, only=args.only, jobs=args.jobs)
+        return EXIT_OK
     if args.name == "handeye":
         from .sim.handeye_study import run_handeye_study
 
@@ -580,7 +585,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("study", help="accuracy studies against ground truth (see README)")
     s.add_argument("name", choices=["accuracy", "edge-bias", "grids", "target-shape", "lenses", "handeye", "trust",
-                                        "model-bias"])
+                                        "model-bias", "guided"])
+    s.add_argument("--seeds", type=int, default=20, help="guided: sessions per case and strategy")
+    s.add_argument("--quick", action="store_true", help="guided: 640x480 renders")
+    s.add_argument("--jobs", type=int, default=2, help="guided: sessions run in parallel")
     s.add_argument("--draws", type=int, default=10, help="trust: noise draws and new sessions per scenario")
     s.add_argument("--only", default="", help="trust: only the scenarios whose name contains this text")
     s.add_argument("--opencv4-python", default="", help="handeye: a Python with OpenCV 4.x for calibrateHandEye")

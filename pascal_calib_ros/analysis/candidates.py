@@ -131,7 +131,7 @@ class Feasibility:
     min_distance: float = 0.0
     max_distance: float = np.inf
     min_radius_px: float = 8.0
-    min_square_px: float = 10.0
+    min_square_px: float = 7.0
 
 
 def default_feasibility(target: Target, width: int, distances: np.ndarray | None = None) -> Feasibility:
@@ -276,7 +276,7 @@ class CandidateGrid:
     cols: int = 5
     rows: int = 4
     span: float = 0.8
-    sizes: tuple[float, ...] = (0.35, 0.55)
+    sizes: tuple[float, ...] = (0.3, 0.45, 0.6)
     tilts_deg: tuple[float, ...] = (30.0, 50.0)
     axes: int = 8
     rolls_deg: tuple[float, ...] = (0.0,)
