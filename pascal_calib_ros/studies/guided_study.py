@@ -104,7 +104,7 @@ def run_session(case: Case, strategy: str, seed: int, n_max: int, error: PersonE
     strat = make_strategy(strategy, error, case.spec)
     params = DetectionParams.for_lens(cam.lens.wide)
     opts = CalibrationOptions(distortion=case.distortion)
-    curve: dict[int, dict[str, float]] = {}
+    curve: dict[int, dict[str, Any]] = {}
     attempts, rejected = 0, 0
     t0 = time.perf_counter()
     while len(state.dets) < n_max and attempts < 3 * n_max:
