@@ -25,7 +25,7 @@ and translation (mm), norms over the axes.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -43,6 +43,7 @@ from .candidates import (
     candidate_placements,
     default_feasibility,
     feasible_candidates,
+    placement_of,
 )
 from .guidance import ChainRows, Linearisation, NoiseModel, Prediction, ViewPredictor, semi_minor_px
 from .view_ranking import RankedView, rank_candidates
@@ -215,7 +216,8 @@ def chain_rows(model: ArmModel, tools: Sequence[Transform]) -> ChainRows:
 
 
 ARM_GRID = CandidateGrid(cols=4, rows=3, span=0.7, sizes=(0.35, 0.5), tilts_deg=(25.0, 45.0), axes=6,
-                         rolls_deg=(-90.0, -45.0, 0.0, 45.0, 90.0))
+                         rolls_deg=(-60.0, 0.0, 60.0))
+LOCAL_VIEWS = 10  # the latest visited views around which local candidates are made
 ON_THEIR_WAY = 4.0  # the hand-eye terms join the ranking once the projection sigma is within this x the goal
 
 
@@ -248,12 +250,33 @@ class ArmSuggestions:
     n_candidates: int  # feasible views inside the trust region
 
 
+def local_placements(model: ArmModel, target: Target, trust: TrustRegion) -> list[Placement]:
+    """Placements near those of the latest visited views (a trust region may admit nothing of
+    the coarse grid): each turned about the optical axis by +-45 and 90 degrees, tilted 15 degrees
+    more or less, its tilt axis turned by +-60 degrees, moved by 15 % of the image, 15 % nearer
+    or farther."""
+    cam = model.predictor.camera_sized
+    out = []
+    for g in trust.visited[-LOCAL_VIEWS:]:
+        p = placement_of(target, cam, model.frames.camera_pose(g))
+        u, v = p.pixel
+        du, dv = 0.15 * cam.width, 0.15 * cam.height
+        out += [replace(p, roll_deg=p.roll_deg + r) for r in (-90.0, -45.0, 45.0, 90.0)]
+        out += [replace(p, tilt_deg=max(p.tilt_deg + d, 0.0)) for d in (-15.0, 15.0)]
+        out += [replace(p, axis_deg=p.axis_deg + d, roll_deg=p.roll_deg + r) for d in (-60.0, 60.0) for r in (-45, 45)]
+        out += [replace(p, pixel=(u + a, v + b)) for a, b in ((du, 0.0), (-du, 0.0), (0.0, dv), (0.0, -dv))]
+        out += [replace(p, distance=p.distance * f) for f in (0.85, 1.15)]
+    return out
+
+
 def arm_candidates(model: ArmModel, target: Target, trust: TrustRegion, grid: CandidateGrid = ARM_GRID,
                    rules: Feasibility | None = None) -> tuple[list[tuple[Placement, Transform]], list[Transform]]:
-    """Feasible views whose tool pose lies in the trust region, and those tool poses."""
+    """Feasible views whose tool pose lies in the trust region, and those tool poses: the grid's
+    placements and placements near the visited views (:func:`local_placements`)."""
     cam = model.predictor.camera_sized
     rules = rules or default_feasibility(target, cam.width)
-    cands = feasible_candidates(target, cam, candidate_placements(cam, grid, target), rules)
+    placements = candidate_placements(cam, grid, target) + local_placements(model, target, trust)
+    cands = feasible_candidates(target, cam, placements, rules)
     tools = [model.frames.tool_pose(pose) for _, pose in cands]
     keep = [k for k, why in enumerate(trust.problems(tools)) if not why]
     return [cands[k] for k in keep], [tools[k] for k in keep]

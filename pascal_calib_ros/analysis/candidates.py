@@ -122,6 +122,29 @@ def rotation_matrices(rv: np.ndarray) -> np.ndarray:
     return np.eye(3) + s * K + (1 - c) * (K @ K)
 
 
+def placement_of(target: Target, camera: Camera, pose: Transform) -> Placement:
+    """The placement that :func:`place` turns into ``pose`` (its inverse): the features' centre's
+    pixel and distance, the tilt against the line of sight, its axis and the roll."""
+    c = feature_centre(target)
+    centre = pose.apply(np.r_[c, 0.0])
+    pixel = camera.project(centre[None])[0]
+    ray = centre / np.linalg.norm(centre)
+    axis = np.cross([0.0, 0.0, 1.0], ray)
+    s_ = float(np.linalg.norm(axis))
+    turn = Rotation.from_rotvec(axis / s_ * np.arctan2(s_, float(ray[2]))) if s_ > 1e-12 else Rotation.identity()
+    M = (turn.inv() * pose.rotation).as_matrix()  # tilt (about an in-plane axis) then roll (about z)
+    z = M[:, 2]
+    tilt = float(np.degrees(np.arccos(np.clip(z[2], -1.0, 1.0))))
+    # the tilt axis a (in plane) turns z to M z: a ~ z x Mz
+    a = np.cross([0.0, 0.0, 1.0], z)
+    axis_deg = float(np.degrees(np.arctan2(a[1], a[0]))) if np.linalg.norm(a) > 1e-12 else 0.0
+    T = Rotation.from_rotvec(np.radians(tilt) * np.array([np.cos(np.radians(axis_deg)), np.sin(np.radians(axis_deg)),
+                                                          0.0]))
+    roll = (T.inv() * Rotation.from_matrix(M)).as_rotvec()
+    return Placement((float(pixel[0]), float(pixel[1])), float(np.linalg.norm(centre)), tilt, axis_deg,
+                     float(np.degrees(roll[2])))
+
+
 @dataclass(frozen=True)
 class Feasibility:
     """The rules of a feasible view (module docstring); distances in metres, angles in degrees."""
