@@ -21,7 +21,7 @@ import multiprocessing as mp
 import os
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -216,12 +216,88 @@ def _done_lines(rs: list[dict[str, Any]], ck: str, fig: dict[str, Any]) -> list[
     return lines
 
 
+def suggestion_timing(quick: bool, n_views: int = 30, repeats: int = 3) -> str:
+    """Wall and CPU time of one suggestion (:func:`..analysis.view_ranking.suggest_views`, one BLAS
+    thread) from a calibration of ``n_views`` random views, per target; the machine's load beside."""
+    from ..analysis.view_ranking import suggest_views
+    from ..sim.session import render_session_views
+
+    lines = ["\n### time of one suggestion", "", f"| target | views | wall s (median of {repeats}) | CPU s | "
+             "load average |", "|---|---|---|---|---|"]
+    for name in ("ring_a4", "ring_grid_a4", "pascal_board_a3"):
+        target = resolve_target(name)
+        spec = replace(cases(quick)["ring"].spec, views=n_views, seed=7)
+        cam, views = render_session_views(target, spec)
+        res = calibrate([detect_target(v.image, target) for v in views], target)
+        assert res.refinement is not None
+        wall, cpu = [], []
+        with threadpool_limits(1, "blas"):
+            for _ in range(repeats):
+                t0, c0 = time.perf_counter(), time.process_time()
+                suggest_views(res.refinement, target, cam.width, cam.height, n=5)
+                wall.append(time.perf_counter() - t0)
+                cpu.append(time.process_time() - c0)
+        lines.append(f"| {name} | {res.n_used} | {np.median(wall):.2f} | {np.median(cpu):.2f} | "
+                     f"{os.getloadavg()[0]:.1f} |")
+        sys.stderr.write(lines[-1] + "\n")
+    return "\n".join(lines)
+
+
+def tilt_limits(quick: bool, per_tilt: int = 12) -> str:
+    """How often the detector finds each target tilted by a given angle against the line of sight
+    (random positions and sizes, 800x600 with k1 = -0.3): the measurement behind
+    :data:`..analysis.candidates.MAX_TILT_DEG`."""
+    from ..analysis.candidates import Feasibility, Placement, distance_for_size, feasibility_problem, place
+    from ..sim.render import Pose
+
+    cam = cases(quick)["ring"].spec.camera()
+    rules = Feasibility(margin_px=16.0, max_tilt_deg=89.0, min_radius_px=0.0, min_square_px=0.0)
+    tilts = (40, 50, 55, 60, 65, 70, 75)
+    lines = ["\n### detections per tilt against the line of sight", "",
+             "| target | " + " | ".join(f"{t} deg" for t in tilts) + " |", "|---|" + "---|" * len(tilts)]
+    for name in ("ring_a4", "ring_grid_a4", "pascal_board_a3"):
+        target = resolve_target(name)
+        rng = np.random.default_rng(0)
+        cells = []
+        for tilt in tilts:
+            ok = n = 0
+            while n < per_tilt:
+                p = Placement((rng.uniform(0.25, 0.75) * cam.width, rng.uniform(0.25, 0.75) * cam.height),
+                              distance_for_size(target, cam, rng.uniform(0.35, 0.6)), tilt, rng.uniform(0, 360),
+                              rng.uniform(-30, 30))
+                T = place(target, cam, p)
+                if feasibility_problem(target, cam, T, rules):
+                    continue
+                n += 1
+                img = render_view(target, cam, Pose(T.R, T.translation), SensorModel(blur_sigma=1.0, seed=n)).image
+                d = detect_target(img, target)
+                ok += int(d.ok and (target.checkerboard is None or d.corners is not None))
+            cells.append(f"{ok}/{n}")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+        sys.stderr.write(lines[-1] + "\n")
+    return "\n".join(lines)
+
+
 def run_guided_study(out: Path, seeds: int = 20, quick: bool = False, only: str = "", jobs: int = 2,
                      strategies: tuple[str, ...] = STRATEGIES, n_max: int = 20) -> dict[str, Any]:
     """Run the person cases (module docstring); write guided.json and guided.md to ``out``."""
     out.mkdir(parents=True, exist_ok=True)
     cs = cases(quick)
-    keys = [k for k in cs if not only or k in only.split(",")]
+    want = only.split(",") if only else [*cs, "arm", "timing"]
+    keys = [k for k in cs if k in want]
+    extra = ""
+    if "timing" in want:
+        extra += suggestion_timing(quick)
+    if "tilt" in want:
+        extra += tilt_limits(quick)
+    if "arm" in want:
+        from .guided_arm import run_arm_study
+
+        extra += run_arm_study(out, seeds, quick, jobs)
+    if not keys:
+        print(extra)
+        (out / "guided_extra.md").write_text(extra + "\n")
+        return {}
     error = PersonError()
     tasks = [(cs[k], st, seed, n_max, error) for seed in range(1, seeds + 1) for k in keys for st in strategies]
     rows: list[dict[str, Any]] = []
@@ -245,6 +321,7 @@ def run_guided_study(out: Path, seeds: int = 20, quick: bool = False, only: str 
                              f"calibrations, rms at 8 views {e8:.3f} px, {r['seconds']:.0f} s "
                              f"(elapsed {time.perf_counter() - t0:.0f} s)\n")
     text, figures = summarise(rows, keys)
+    text += extra
     header = (f"guided study: {seeds} seeds, {'640x480' if quick else '800x600'}, person error "
               f"{json.dumps(asdict(error))}, {os.cpu_count()} CPUs")
     print(header + "\n" + text)
