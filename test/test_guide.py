@@ -43,11 +43,11 @@ def test_bootstrap_outline_match_and_hint(ring_target: Target) -> None:
 
 def test_hint_order() -> None:
     sq = np.array([[0.0, 0.0], [100.0, 0.0], [100.0, 100.0], [0.0, 100.0]])
-    assert hint(sq, sq + [0.0, 80.0], 640) == "move the target down"
+    assert hint(sq, sq + np.array([0.0, 80.0]), 640) == "move the target down"
     assert hint(sq, (sq - 50) * 1.5 + 50, 640) == "bring the target closer"
     assert hint(sq, sq, 640) == "match the outline"
     assert overlap(sq, sq, 640, 480) == pytest.approx(1.0)
-    assert overlap(sq, sq + [200.0, 0.0], 640, 480) == 0.0
+    assert overlap(sq, sq + np.array([200.0, 0.0]), 640, 480) == 0.0
 
 
 def test_done_comes_from_the_recalibrated_views(ring_target: Target) -> None:

@@ -79,7 +79,7 @@ def test_arm_suggestions_stay_within_reach_and_max_turn(tmp_path: Path) -> None:
         paths.append(tmp_path / name)
     write_poses_yaml(tmp_path / "POSES.yaml", "base_link", "tool0", dict(zip(s.names, s.robot_poses, strict=True)))
     out = tmp_path / "NEXT.yaml"
-    reach, turn = 0.08, 25.0
+    reach, turn = 0.1, 30.0
     code = main(["suggest", "--target", "ring_grid_a4", "--poses", str(tmp_path / "POSES.yaml"), "--mode",
                  "eye_in_hand", "--reach", str(reach), "--max-turn", str(turn), "-n", "4", "-o", str(out),
                  *map(str, paths)])

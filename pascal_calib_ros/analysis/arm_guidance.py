@@ -46,7 +46,7 @@ from .candidates import (
     placement_of,
 )
 from .guidance import ChainRows, Linearisation, NoiseModel, Prediction, ViewPredictor, semi_minor_px
-from .view_ranking import RankedView, rank_candidates
+from .view_ranking import RankedView, rank_candidates, unseen
 from .view_synthesis import synthesise_view
 
 
@@ -251,21 +251,21 @@ class ArmSuggestions:
 
 
 def local_placements(model: ArmModel, target: Target, trust: TrustRegion) -> list[Placement]:
-    """Placements near those of the latest visited views (a trust region may admit nothing of
-    the coarse grid): each turned about the optical axis by +-45 and 90 degrees, tilted 15 degrees
-    more or less, its tilt axis turned by +-60 degrees, moved by 15 % of the image, 15 % nearer
-    or farther."""
+    """Placements near those of the latest visited views (a tight trust region may admit nothing
+    of the coarse grid), each far enough to be a new view (:func:`.view_ranking.distinct`): turned
+    about the optical axis by +-25, +-45 and 90 degrees, tilted 20 degrees more or less, its tilt
+    axis turned by +-60 degrees, moved by a quarter of the image, 25 % nearer or 30 % farther."""
     cam = model.predictor.camera_sized
     out = []
     for g in trust.visited[-LOCAL_VIEWS:]:
         p = placement_of(target, cam, model.frames.camera_pose(g))
         u, v = p.pixel
-        du, dv = 0.15 * cam.width, 0.15 * cam.height
-        out += [replace(p, roll_deg=p.roll_deg + r) for r in (-90.0, -45.0, 45.0, 90.0)]
-        out += [replace(p, tilt_deg=max(p.tilt_deg + d, 0.0)) for d in (-15.0, 15.0)]
-        out += [replace(p, axis_deg=p.axis_deg + d, roll_deg=p.roll_deg + r) for d in (-60.0, 60.0) for r in (-45, 45)]
+        du, dv = 0.25 * cam.width, 0.25 * cam.height
+        out += [replace(p, roll_deg=p.roll_deg + r) for r in (-90.0, -45.0, -25.0, 25.0, 45.0, 90.0)]
+        out += [replace(p, tilt_deg=max(p.tilt_deg + d, 0.0)) for d in (-20.0, 20.0)]
+        out += [replace(p, axis_deg=p.axis_deg + d, roll_deg=p.roll_deg + r) for d in (-60.0, 60.0) for r in (-25, 25)]
         out += [replace(p, pixel=(u + a, v + b)) for a, b in ((du, 0.0), (-du, 0.0), (0.0, dv), (0.0, -dv))]
-        out += [replace(p, distance=p.distance * f) for f in (0.85, 1.15)]
+        out += [replace(p, distance=p.distance * f) for f in (0.75, 1.3)]
     return out
 
 
@@ -277,6 +277,8 @@ def arm_candidates(model: ArmModel, target: Target, trust: TrustRegion, grid: Ca
     rules = rules or default_feasibility(target, cam.width)
     placements = candidate_placements(cam, grid, target) + local_placements(model, target, trust)
     cands = feasible_candidates(target, cam, placements, rules)
+    seen = [placement_of(target, cam, model.frames.camera_pose(g)) for g in trust.visited]
+    cands = unseen(cands, seen, cam.width, cam.height, roll_deg=20.0)
     tools = [model.frames.tool_pose(pose) for _, pose in cands]
     keep = [k for k, why in enumerate(trust.problems(tools)) if not why]
     return [cands[k] for k in keep], [tools[k] for k in keep]

@@ -11,8 +11,11 @@ Feasible (:func:`feasibility_problem`): every feature outline point inside the i
 margin and on a consistent ray of the camera (the lens model does not fold there), the tilt
 within what the detector handles for this target (:func:`max_tilt_deg`, measured on renders),
 the distance in a range (by default what the captured views span, widened: a person's arm, a
-lens's depth of field), and every circle's image large enough for the detector (semi-minor
-axis at least ``min_radius_px``; a checkerboard's squares at least ``min_square_px``).
+lens's depth of field), and every outer circle's image large enough for the detector (semi-minor
+axis at least ``min_radius_px``, its blob threshold; a checkerboard's squares at least
+``min_square_px``). The candidates are tilted 25 or 45 degrees: the detector finds targets up to
+55-70 degrees (:data:`MAX_TILT_DEG`), but steeper views measure worse and bias more (the edge
+profiles squeezed, corners' subpixel fits skewed), which no covariance shows.
 """
 
 from __future__ import annotations
@@ -195,12 +198,14 @@ def _in_image(camera: Camera, X: np.ndarray, margin: float) -> np.ndarray:
 
 
 def smallest_circles(target: Target) -> tuple[np.ndarray, np.ndarray]:
-    """The circles whose images are the smallest somewhere: those of the smallest radius at the
-    corners and the middle of the layout (centres (K, 2), radii (K,))."""
-    if not target.circles:
+    """The outer circles (what the detector finds first: a blob's outline) whose images are the
+    smallest somewhere: those of the smallest radius at the corners and the middle of the layout
+    (centres (K, 2), radii (K,))."""
+    outer = [c for c in target.circles if c.dark_inside]
+    if not outer:
         return np.zeros((0, 2)), np.zeros(0)
-    ctr = np.array([c.center for c in target.circles])
-    rad = np.array([c.radius for c in target.circles])
+    ctr = np.array([c.center for c in outer])
+    rad = np.array([c.radius for c in outer])
     small = rad <= rad.min() * (1 + 1e-9)
     c, r = ctr[small], rad[small]
     lo, hi = c.min(0), c.max(0)
@@ -299,8 +304,8 @@ class CandidateGrid:
     cols: int = 5
     rows: int = 4
     span: float = 0.8
-    sizes: tuple[float, ...] = (0.3, 0.45, 0.6)
-    tilts_deg: tuple[float, ...] = (30.0, 50.0)
+    sizes: tuple[float, ...] = (0.25, 0.35, 0.5)
+    tilts_deg: tuple[float, ...] = (25.0, 45.0)
     axes: int = 8
     rolls_deg: tuple[float, ...] = (0.0,)
 

@@ -28,6 +28,7 @@ from .candidates import (
     default_feasibility,
     feasible_candidates,
     feature_centre,
+    placement_of,
 )
 from .guidance import Linearisation, Prediction, ViewPredictor
 from .view_synthesis import synthesise_view
@@ -74,15 +75,21 @@ def predict_poses(pred: ViewPredictor, target: Target, poses: list[Transform], o
     return pred.predict(views, np.array(params), weights, COARSE_GRID if coarse else 1, chain)  # type: ignore[arg-type]
 
 
-def distinct(a: Placement, b: Placement, width: int, height: int) -> bool:
-    """Whether two placements differ enough to be offered side by side: centres 15 % of the
-    image diagonal apart, or tilts about axes 60 degrees apart, or sizes 30 % apart, or one tilted
-    and the other not."""
+DISTINCT_TILT_DEG = 20.0  # tilts (as vectors: magnitude along the axis' direction) this far apart differ
+
+
+def distinct(a: Placement, b: Placement, width: int, height: int, roll_deg: float = 0.0) -> bool:
+    """Whether two views differ enough to be offered side by side: centres 15 % of the image
+    diagonal apart, or distances 30 % apart, or tilts :data:`DISTINCT_TILT_DEG` apart (the tilt
+    as a vector, its length the angle, its direction the axis', so that a head-on view and one
+    tilted 25 degrees differ, and two views tilted 25 degrees about axes 60 degrees apart)."""
     if np.hypot(a.pixel[0] - b.pixel[0], a.pixel[1] - b.pixel[1]) > 0.15 * np.hypot(width, height):
         return True
-    if (a.tilt_deg == 0) != (b.tilt_deg == 0) or abs(np.log(a.distance / b.distance)) > np.log(1.3):
+    if abs(np.log(a.distance / b.distance)) > np.log(1.3):
         return True
-    return a.tilt_deg > 0 and abs((a.axis_deg - b.axis_deg + 180) % 360 - 180) > 60
+    ta = a.tilt_deg * np.array([np.cos(np.radians(a.axis_deg)), np.sin(np.radians(a.axis_deg))])
+    tb = b.tilt_deg * np.array([np.cos(np.radians(b.axis_deg)), np.sin(np.radians(b.axis_deg))])
+    return bool(np.linalg.norm(ta - tb) > DISTINCT_TILT_DEG)
 
 
 def pick_distinct(ranked: list[RankedView], n: int, width: int, height: int) -> list[RankedView]:
@@ -143,6 +150,20 @@ def view_distances(target: Target, res: RefineResult) -> np.ndarray:
     return np.linalg.norm(R @ c + t, axis=1)
 
 
+def captured_placements(target: Target, camera: Camera, R: np.ndarray, t: np.ndarray) -> list[Placement]:
+    """The placements (:func:`.candidates.placement_of`) of the captured views' poses (local
+    frame, R (V, 3, 3), t (V, 3))."""
+    return [placement_of(target, camera, yaml_pose(target, Ri, ti)) for Ri, ti in zip(R, t, strict=True)]
+
+
+def unseen(candidates: list[tuple[Placement, Transform]], seen: list[Placement], width: int, height: int,
+           roll_deg: float = 0.0) -> list[tuple[Placement, Transform]]:
+    """The candidates distinct (:func:`distinct`) from every captured view. The covariance knows
+    only the noise that averages out; a view taken again where one was taken repeats that view's
+    detection biases (which do not), so the guide offers something new."""
+    return [c for c in candidates if all(distinct(c[0], p, width, height, roll_deg) for p in seen)]
+
+
 def suggest_views(res: RefineResult, target: Target, width: int, height: int, n: int = 5,
                   grid: CandidateGrid = CandidateGrid(),  # noqa: B008 (frozen dataclass)
                   rules: Feasibility | None = None,
@@ -151,5 +172,8 @@ def suggest_views(res: RefineResult, target: Target, width: int, height: int, n:
     pred = ViewPredictor(Linearisation.of_refinement(res), width, height)
     rules = rules or default_feasibility(target, width, view_distances(target, res))
     cands = feasible_candidates(target, pred.camera_sized, candidate_placements(pred.camera_sized, grid, target), rules)
+    assert res.x is not None
+    R, t = res.view_poses_of(res.x)
+    cands = unseen(cands, captured_placements(target, pred.camera_sized, R, t), width, height)
     ranked = rank_candidates(pred, target, cands, n, options)
     return ViewSuggestions(pred.sigma_now(), pred.distance_now, ranked, len(cands), pred.camera_sized)

@@ -104,10 +104,11 @@ class Guided:
 
     name = "guided"
 
-    def __init__(self, error: PersonError | None):
-        self.error = error
+    def __init__(self, error: PersonError | None, spec: SessionSpec):
+        self.error, self.spec = error, spec
         self.boot = 0
         self.failed: list[Placement] = []
+        self.fallbacks = 0  # views of the person's own choosing when the guide had no feasible candidate
 
     def next(self, state: SessionState) -> Pose:
         cal = state.calibration
@@ -119,7 +120,8 @@ class Guided:
         s = suggest_views(cal.refinement, state.target, cal.width, cal.height, n=4)
         state.sigma_px = s.sigma_px
         if not s.suggestions:  # no feasible candidate: what a person would do, a view of their own
-            return RandomPoses(SessionSpec()).next(state)
+            self.fallbacks += 1
+            return RandomPoses(self.spec).next(state)
         choice = next((r for r in s.suggestions if r.placement not in self.failed), s.suggestions[0])
         self.last = choice.placement
         return asked(state, choice.placement, self.error)
@@ -284,7 +286,7 @@ def make_strategy(name: str, error: PersonError | None, spec: SessionSpec
                   ) -> Guided | RandomPoses | Diversity | Coverage | Checklist:
     """The strategy of that name; ``spec`` the random sessions' distribution of poses."""
     if name == "guided":
-        return Guided(error)
+        return Guided(error, spec)
     if name == "random":
         return RandomPoses(spec)
     if name == "diversity":

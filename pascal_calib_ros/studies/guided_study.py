@@ -140,7 +140,8 @@ def run_session(case: Case, strategy: str, seed: int, n_max: int, error: PersonE
                         "fx_err_pct": 100 * (res.K[0, 0] / cam.K[0, 0] - 1),
                         "pp_err_px": float(np.hypot(*(res.K[:2, 2] - cam.K[:2, 2])))}
     return {"case": case.key, "strategy": strategy, "seed": seed, "curve": {str(k): v for k, v in curve.items()},
-            "attempts": attempts, "rejected": rejected, "seconds": time.perf_counter() - t0}
+            "attempts": attempts, "rejected": rejected, "fallbacks": getattr(strat, "fallbacks", 0),
+            "seconds": time.perf_counter() - t0}
 
 
 def _task(args: tuple[Case, str, int, int, PersonError | None]) -> dict[str, Any]:
