@@ -68,9 +68,10 @@ def test_bad_input_exits_2_with_the_reason(views: list[Path], tmp_path: Path,
     assert not out.exists()
 
 
-def test_arm_suggestions_stay_within_reach_and_max_turn(tmp_path: Path) -> None:
+@pytest.mark.parametrize("mode", ["eye_in_hand", "eye_to_hand"])
+def test_arm_suggestions_stay_within_reach_and_max_turn(tmp_path: Path, mode: str) -> None:
     target = resolve_target("ring_grid_a4")
-    s = simulate_arm_session(target, ArmSpec(views=5, width=640, height=480, seed=3, systematic_mm=0.0))
+    s = simulate_arm_session(target, ArmSpec(mode=mode, views=5, width=640, height=480, seed=3, systematic_mm=0.0))
     paths = []
     import cv2
 
@@ -81,11 +82,11 @@ def test_arm_suggestions_stay_within_reach_and_max_turn(tmp_path: Path) -> None:
     out = tmp_path / "NEXT.yaml"
     reach, turn = 0.1, 30.0
     code = main(["suggest", "--target", "ring_grid_a4", "--poses", str(tmp_path / "POSES.yaml"), "--mode",
-                 "eye_in_hand", "--reach", str(reach), "--max-turn", str(turn), "-n", "4", "-o", str(out),
+                 mode, "--reach", str(reach), "--max-turn", str(turn), "-n", "4", "-o", str(out),
                  *map(str, paths)])
     assert code == 0
     doc = yaml.safe_load(out.read_text())
-    assert doc["mode"] == "eye_in_hand" and doc["frame_id"] == "base_link" and doc["child_frame_id"] == "tool0"
+    assert doc["mode"] == mode and doc["frame_id"] == "base_link" and doc["child_frame_id"] == "tool0"
     assert doc["hand_eye_sigma_deg"] > 0 and doc["hand_eye_sigma_mm"] > 0
     assert doc["suggestions"], "no suggestion inside the trust region"
     visited = s.robot_poses
@@ -98,12 +99,12 @@ def test_arm_suggestions_stay_within_reach_and_max_turn(tmp_path: Path) -> None:
         # the tool pose and the view agree through the estimated hand-eye loop: the true loop puts
         # the target's features where the suggestion says (up to the grid's 180 degree symmetry, which
         # the session's labelling may have chosen: the features' centre and the sheet's normal agree)
-        C = s.hand_eye.inverse() @ tool.inverse() @ s.target_pose
+        C = s.hand_eye.inverse() @ (tool.inverse() if mode == "eye_in_hand" else tool) @ s.target_pose
         want = Transform.from_quat(sg["camera_T_target"]["rotation"], sg["camera_T_target"]["translation"])
         c = np.r_[feature_centre(target), 0.0]
         assert np.linalg.norm(C.apply(c) - want.apply(c)) < 0.01
         assert np.degrees(np.arccos(np.clip(C.R[:, 2] @ want.R[:, 2], -1, 1))) < 1.0
     # a trust region that excludes everything but the visited poses themselves gives no tool pose far away
     code = main(["suggest", "--target", "ring_grid_a4", "--poses", str(tmp_path / "POSES.yaml"), "--mode",
-                 "eye_in_hand", "--reach", "0.001", "--max-turn", "0.1", "-o", str(out), *map(str, paths)])
+                 mode, "--reach", "0.001", "--max-turn", "0.1", "-o", str(out), *map(str, paths)])
     assert code == 0 and yaml.safe_load(out.read_text())["suggestions"] == []
