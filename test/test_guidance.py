@@ -107,3 +107,28 @@ def test_suggestions_are_ranked_and_distinct(small_session, ring_target: Target)
     for i, a in enumerate(s.suggestions):
         for b in s.suggestions[:i]:  # a skipped suggestion leaves a real alternative
             assert distinct(a.placement, b.placement, W, H)
+
+
+def test_noise_model_recovers_a_power_law_of_the_imaged_size() -> None:
+    """Per-row variances planted as 0.02 (b / 5 px)^-2 over views of the ring grid at different
+    distances: the fitted slope is -2 and a candidate's variance follows the law within the
+    observed range, clipped outside it."""
+    from pascal_calib_ros.analysis.candidates import Placement, distance_for_size, place
+    from pascal_calib_ros.analysis.guidance import fit_noise_model
+    from pascal_calib_ros.analysis.view_synthesis import synthesise_view
+    from pascal_calib_ros.calibrate.refine import Problem
+    from pascal_calib_ros.targets import resolve_target
+
+    grid = resolve_target("ring_grid_a4")
+    cam = Camera.from_params(600.0, 600.0, 320.0, 240.0, width=W, height=H)
+    views = []
+    for size in (0.3, 0.4, 0.5, 0.6, 0.7):
+        T = place(grid, cam, Placement((W / 2, H / 2), distance_for_size(grid, cam, size), 20.0, 30.0, 0.0))
+        views.append(synthesise_view(grid, cam, *local_pose(grid, T)).data)
+    prob = Problem(views, 6, ("fx", "fy", "cx", "cy"), True)
+    b = np.array([semi_minor_px(v) for v in views])
+    var = np.concatenate([np.full(len(v.points), 0.02 * (bi / 5.0) ** -2) for v, bi in zip(views, b, strict=True)])
+    m = fit_noise_model(prob, var)
+    assert m.b == pytest.approx(-2.0, abs=1e-6)
+    assert m.edge_variance(float(np.mean(b))) == pytest.approx(0.02 * (np.mean(b) / 5.0) ** -2, rel=1e-6)
+    assert m.edge_variance(1000.0) == pytest.approx(0.5 * float(var.min()))
