@@ -55,9 +55,8 @@ class Linearisation:
     """A solved problem at its solution: what the prediction needs (plain data).
 
     ``var`` (rows,) the rows' variances (V of the sandwich), ``w`` their IRLS weights; ``extra``
-    (e, P) further linear readouts of the parameters reported beside the projection (e.g. the
-    hand-eye transform's six parameters), ``extra_rows`` per new view (e, per_view): zero unless
-    the readout depends on a view's own pose."""
+    (e, P) further linear readouts of the global parameters reported beside the projection (e.g.
+    the hand-eye transform's six parameters; a new view's pose does not enter them)."""
 
     problem: Problem
     x: np.ndarray
