@@ -191,10 +191,28 @@ def summarise(rows: list[dict[str, Any]], case_keys: list[str]) -> tuple[str, di
             fig[st] = {"views_needed_median": need_med, "reached": int(np.sum(np.isfinite(need))), "seeds": len(sr),
                        **{f"rms_at_{n}": med[n] for n in REPORT_N},
                        **{f"rms_at_{n}_q75": float(np.percentile(errs[n], 75)) for n in REPORT_N}}
+        lines += _other_lines(rs)
         lines += _done_lines(rs, ck, fig)
         out += lines
         figures[ck] = fig
     return "\n".join(out), figures
+
+
+def _other_lines(rs: list[dict[str, Any]]) -> list[str]:
+    """The same sessions by the true worst error over the image and by the raw RMS error (no
+    rotation fitted), medians over the seeds."""
+    lines = ["", "| strategy | worst, N = 8 | 12 | 20 | raw RMS, N = 8 | 12 | 20 | "
+             "views rejected by the detector | guide without a feasible candidate |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for st in STRATEGIES:
+        sr = [r for r in rs if r["strategy"] == st]
+        if not sr:
+            continue
+        cells = [f"{np.median([_at(r['curve'], n, key) for r in sr]):.3f}" for key in ("worst_px", "raw_rms_px")
+                 for n in REPORT_N]
+        lines.append(f"| {st} | " + " | ".join(cells) + f" | {sum(r['rejected'] for r in sr)} | "
+                     f"{sum(r.get('fallbacks', 0) for r in sr)} |")
+    return lines
 
 
 def _done_lines(rs: list[dict[str, Any]], ck: str, fig: dict[str, Any]) -> list[str]:
