@@ -9,11 +9,11 @@ from __future__ import annotations
 import argparse
 import sys
 
-from . import bag, calibrate, diff, export, handeye, render, stereo, studies, target, verify
+from . import bag, calibrate, diff, export, handeye, render, stereo, studies, suggest, target, verify
 from .common import EXIT_INPUT, error
 
 # each command module: add_parser(sub), and the function it sets as the parser's func
-COMMANDS = (calibrate, handeye, stereo, diff, export, verify, render, bag, studies, target)
+COMMANDS = (calibrate, suggest, handeye, stereo, diff, export, verify, render, bag, studies, target)
 
 
 def build_parser() -> argparse.ArgumentParser:

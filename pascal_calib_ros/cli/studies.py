@@ -26,17 +26,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     e.set_defaults(func=cmd_experiment)
     s = sub.add_parser("study", help="accuracy studies against ground truth (see README)")
     s.add_argument("name", choices=["accuracy", "edge-bias", "grids", "target-shape", "lenses", "handeye", "trust",
-                                        "model-bias", "verify", "stereo"])
+                                        "model-bias", "verify", "stereo", "guided"])
     s.add_argument("--sessions", type=int, default=None,
                    help="verify: verification sessions per scenario (default 20); stereo: sessions of the accuracy "
                         "table (default 5)")
     s.add_argument("--draws", type=int, default=10, help="trust, stereo: noise draws and new sessions per scenario")
     s.add_argument("--only", default="", help="trust: only the scenarios whose name contains this text; verify: "
-                                              "camera, hand-eye and/or timing (comma-separated)")
+                                              "camera, hand-eye and/or timing; guided: ring, grid, board, fisheye, "
+                                              "arm, timing and/or tilt (comma-separated)")
     s.add_argument("--opencv4-python", default="", help="handeye: a Python with OpenCV 4.x for calibrateHandEye")
     s.add_argument("--targets", default="ring_a4,checkerboard_a4", help="handeye: targets, comma-separated")
     s.add_argument("--arm-systematic-mm", type=float, default=0.25,
                    help="handeye: amplitude of the arm's systematic position error field (0: random arm noise only)")
+    s.add_argument("--seeds", type=int, default=20, help="guided: sessions per case and strategy")
+    s.add_argument("--quick", action="store_true", help="guided: 640x480 renders")
+    s.add_argument("--jobs", type=int, default=2, help="guided: sessions run in parallel")
     s.add_argument("--out", default="out/study")
     s.add_argument("--views", type=int, default=None, help="default: 15 (lenses: 20 per lens)")
     s.add_argument("--seed", type=int, default=1)
@@ -58,6 +62,11 @@ def cmd_study(args: argparse.Namespace) -> int:
 
         run_handeye_study(Path(args.out), views=args.views or 20, seed=args.seed, opencv4_python=args.opencv4_python,
                           targets=tuple(args.targets.split(",")), systematic_mm=args.arm_systematic_mm)
+        return EXIT_OK
+    if args.name == "guided":
+        from ..studies.guided_study import run_guided_study
+
+        run_guided_study(Path(args.out), seeds=args.seeds, quick=args.quick, only=args.only, jobs=args.jobs)
         return EXIT_OK
     if args.name == "trust":
         from ..studies.trust_study import trust

@@ -1,0 +1,314 @@
+"""Guidance for a robot arm: candidate tool poses near the visited ones, ranked by the predicted
+projection uncertainty and, once the intrinsics are on their way, by the predicted uncertainty
+of the hand-eye transform.
+
+**Frames** (:mod:`..calibrate.handeye`): per view the tool pose G (T_base_tool), the hand-eye
+transform X and the target's pose Y close the loop; with C = camera_T_target (target YAML frame)
+eye in hand G = Y C^-1 X^-1 (X = T_tool_camera, Y = T_base_target), eye to hand G = X C Y^-1
+(X = T_base_camera, Y = T_tool_target).
+
+**Candidates.** Views of the target placed as for a person (:mod:`.candidates`), also turned
+about the optical axis (what a wrist does best, and what the hand-eye rotation needs: the
+motions' rotation axes spread, as Tsai and Lenz ask: "A new technique for fully autonomous and
+efficient 3D robotics hand/eye calibration", IEEE TRA 5(3), 1989), mapped to tool poses. The
+package knows no kinematics: a tool pose is kept if it lies within ``reach`` metres of a visited
+one and within ``max_turn`` degrees of the nearest visited orientation (a trust region).
+
+**Prediction.** The joint problem of :class:`..calibrate.handeye.chain.ChainProblem` (intrinsics free,
+X, Y, every view's pose; the chain rows weighted by the arm's estimated accuracy), linearised at
+the hand-eye estimate with the views synthesised at their estimated poses (a symmetric grid's
+labelling does not matter then); a candidate adds its image rows and its six chain rows
+(:class:`.guidance.ChainRows`). The readout adds X's six parameters: sigma of its rotation (deg)
+and translation (mm), norms over the axes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..calibrate.handeye.chain import ChainProblem, RobotChain
+from ..calibrate.handeye.closed_form import chain_pose
+from ..calibrate.handeye.options import HandEyeResult
+from ..calibrate.options import CalibrationOptions
+from ..geometry.lens import DISTORTION_CHOICES
+from ..geometry.transform import Transform
+from ..targets import Target
+from .candidates import (
+    CandidateGrid,
+    Feasibility,
+    Placement,
+    candidate_placements,
+    default_feasibility,
+    feasible_candidates,
+    placement_of,
+)
+from .guidance import ChainRows, Linearisation, NoiseModel, Prediction, ViewPredictor, semi_minor_px
+from .view_ranking import RankedView, rank_candidates, unseen
+from .view_synthesis import synthesise_view
+
+
+@dataclass(frozen=True)
+class ArmFrames:
+    """The hand-eye loop's fixed transforms (module docstring)."""
+
+    mode: str
+    X: Transform
+    Y: Transform  # target YAML frame -> base (eye in hand) or -> tool (eye to hand)
+
+    def tool_pose(self, camera_T_target: Transform) -> Transform:
+        """T_base_tool that puts the target at ``camera_T_target``."""
+        C = camera_T_target
+        if self.mode == "eye_in_hand":
+            return self.Y @ C.inverse() @ self.X.inverse()
+        return self.X @ C @ self.Y.inverse()
+
+    def camera_pose(self, tool: Transform) -> Transform:
+        """camera_T_target of the tool pose ``tool`` (T_base_tool)."""
+        if self.mode == "eye_in_hand":
+            return self.X.inverse() @ tool.inverse() @ self.Y
+        return self.X.inverse() @ tool @ self.Y
+
+
+@dataclass(frozen=True)
+class TrustRegion:
+    """Tool poses within ``reach`` m of a visited position and ``max_turn`` deg of the nearest
+    visited orientation."""
+
+    visited: tuple[Transform, ...]
+    reach: float = 0.3
+    max_turn: float = 120.0
+
+    def problems(self, tools: Sequence[Transform]) -> list[str]:
+        """Per tool pose why it is outside ("" if inside)."""
+        if not tools:
+            return []
+        vt = np.array([v.translation for v in self.visited])
+        tt = np.array([t.translation for t in tools])
+        dist = np.min(np.linalg.norm(tt[:, None, :] - vt[None, :, :], axis=2), axis=1)
+        vq = Rotation.concatenate([v.rotation for v in self.visited]).as_quat()
+        tq = Rotation.concatenate([t.rotation for t in tools]).as_quat()
+        turn = np.degrees(2 * np.arccos(np.clip(np.max(np.abs(tq @ vq.T), axis=1), -1.0, 1.0)))
+        out = []
+        for d, a in zip(dist, turn, strict=True):
+            if d > self.reach:
+                out.append(f"{d:.2f} m from the nearest visited tool position (reach {self.reach:g} m)")
+            elif a > self.max_turn:
+                out.append(f"turned {a:.0f} deg from the nearest visited orientation (max turn {self.max_turn:g})")
+            else:
+                out.append("")
+        return out
+
+
+@dataclass(frozen=True)
+class ArmModel:
+    """The linearised joint problem of an arm session and what reads X out of it."""
+
+    predictor: ViewPredictor
+    frames: ArmFrames
+    problem: ChainProblem
+
+
+def _local_y(target: Target, Y_yaml: Transform) -> Transform:
+    """Y of the refinement's local frame (origin at the first circle's centre)."""
+    o = np.array(target.circles[0].center if target.circles else (0.0, 0.0))
+    return Y_yaml @ Transform.from_rt(np.eye(3), np.r_[o, 0.0])
+
+
+def arm_model(hres: HandEyeResult, robot_poses: Sequence[Transform], target: Target, noise: NoiseModel,
+              width: int, height: int,
+              options: CalibrationOptions = CalibrationOptions()) -> ArmModel:  # noqa: B008 (frozen dataclass)
+    """The joint problem at the hand-eye estimate (module docstring). ``robot_poses`` are the tool
+    poses of the views the hand-eye calibration used, in their order; ``noise`` the image rows'
+    noise model (from the intrinsic calibration: the correlation factor included)."""
+    cal = hres.calibration
+    if len(robot_poses) != len(cal.poses):
+        raise ValueError(f"{len(robot_poses)} robot poses for {len(cal.poses)} views used")
+    lens, free_d = DISTORTION_CHOICES[cal.distortion_model]
+    free = ("fx", "fy", "cx", "cy") + (() if options.zero_skew else ("skew",)) + free_d
+    cam = cal.camera()
+    views, weights = [], []
+    for p in cal.poses:
+        T = Transform.from_rotvec(p[:3], p[3:6])
+        sv = synthesise_view(target, cam, T.R, T.translation, options)
+        views.append(sv.data)
+        weights.append(sv.weight)
+    M = [chain_pose(g, hres.mode) for g in robot_poses]
+    chain = RobotChain(M, hres.mode == "eye_in_hand", np.radians(max(hres.robot_error_deg, 1e-4)),
+                       max(hres.robot_error_mm, 1e-3) / 1000, 1.0)
+    prob = ChainProblem(views, free, options.edge_offsets, chain, lens=lens)
+    D = np.asarray(cal.D, float).reshape(-1)
+    intr0 = np.array([cal.K[0, 0], cal.K[1, 1], cal.K[0, 2], cal.K[1, 2], cal.K[0, 1], *D])
+    Yl = _local_y(target, hres.target)
+    xy = np.r_[hres.hand_eye.rotvec, hres.hand_eye.translation, Yl.rotvec, Yl.translation]
+    x = prob.pack_chain(intr0, [np.asarray(p, float) for p in cal.poses], np.zeros(len(views)), xy)
+    # the image rows' variances from the noise model; the chain rows in px per sigma of the same scale
+    var_img = np.concatenate([np.full(len(v.points), noise.edge_variance(semi_minor_px(v))) for v in views]
+                             + [np.full(2 * len(v.corners), noise.corner) for v in views])  # edges, then corners
+    chain.scale = float(np.sqrt(max(np.median(var_img), 1e-12)))
+    n_img = prob.n_edge + 2 * prob.n_corner
+    var = np.r_[var_img, np.full(6 * prob.nv, chain.scale**2)]
+    w = np.r_[np.concatenate([wt[:len(v.points)] for v, wt in zip(views, weights, strict=True)]),
+              np.concatenate([wt[len(v.points):] for v, wt in zip(views, weights, strict=True)]),
+              np.ones(6 * prob.nv)]
+    assert len(w) == n_img + 6 * prob.nv
+    extra = np.zeros((6, len(x)))
+    extra[:, prob.n_base:prob.n_base + 6] = np.eye(6)
+    lin = Linearisation(prob, x, intr0, var, w, cal.model, extra)
+    pred = ViewPredictor(lin, width, height)
+    return ArmModel(pred, ArmFrames(hres.mode, hres.hand_eye, hres.target), prob)
+
+
+def hand_eye_sigmas(model: ArmModel, cov: np.ndarray) -> tuple[float, float]:
+    """(rotation sigma deg, translation sigma mm) of X from a readout covariance (norms over the
+    axes; the rotation as small rotations about the parent frame's axes)."""
+    k0 = cov.shape[-1] - 6
+    rv = model.problem.chain_params(model.predictor.lin.x)[:3]
+    J = _rotation_jacobian(rv)
+    cr = J @ cov[..., k0:k0 + 3, k0:k0 + 3] @ J.T
+    ct = cov[..., k0 + 3:k0 + 6, k0 + 3:k0 + 6]
+    deg = np.degrees(np.sqrt(np.maximum(np.trace(cr, axis1=-2, axis2=-1), 0.0)))
+    mm = 1000 * np.sqrt(np.maximum(np.trace(ct, axis1=-2, axis2=-1), 0.0))
+    return deg, mm
+
+
+def _rotation_jacobian(rv: np.ndarray) -> np.ndarray:
+    """d(small rotation about the parent axes) / d(rotation vector), by central differences."""
+    R0 = Rotation.from_rotvec(rv)
+    J = np.zeros((3, 3))
+    h = 1e-6
+    for k in range(3):
+        e = np.zeros(3)
+        e[k] = h
+        J[:, k] = ((Rotation.from_rotvec(rv + e) * R0.inv()).as_rotvec()
+                   - (Rotation.from_rotvec(rv - e) * R0.inv()).as_rotvec()) / (2 * h)
+    return J
+
+
+def chain_rows(model: ArmModel, tools: Sequence[Transform]) -> ChainRows:
+    """The six chain rows of candidate views taken at the tool poses ``tools`` (their Jacobian over
+    the globals and over each candidate's own pose, by central differences)."""
+    prob = model.problem
+    x = model.predictor.lin.x
+    xy = prob.chain_params(x)
+    M = [chain_pose(g, model.frames.mode) for g in tools]
+    ng, pv, b = prob.ng, prob.per_view, prob.n_base
+
+    def rows(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        P = np.asarray(poses, float).reshape(len(M), -1)[:, :6]
+        h = 1e-6
+        Jg = np.zeros((len(M), 6, ng))
+        for k in range(prob.N_CHAIN):
+            e = np.zeros(prob.N_CHAIN)
+            e[k] = h
+            d = (prob.chain_residuals(xy + e, P, M) - prob.chain_residuals(xy - e, P, M)) / (2 * h)
+            Jg[:, :, b + k] = d
+        Jv = np.zeros((len(M), 6, pv))
+        for k in range(6):
+            e = np.zeros(6)
+            e[k] = h
+            Jv[:, :, k] = (prob.chain_residuals(xy, P + e, M) - prob.chain_residuals(xy, P - e, M)) / (2 * h)
+        return Jg, Jv
+
+    return ChainRows(rows, float(prob.chain.scale**2))
+
+
+ARM_GRID = CandidateGrid(cols=4, rows=3, span=0.7, sizes=(0.35, 0.5), tilts_deg=(25.0, 45.0), axes=6,
+                         rolls_deg=(-60.0, 0.0, 60.0))
+LOCAL_VIEWS = 10  # the latest visited views around which local candidates are made
+ON_THEIR_WAY = 4.0  # the hand-eye terms join the ranking once the projection sigma is within this x the goal
+
+
+@dataclass(frozen=True)
+class ArmGoals:
+    """What an arm session is done at: the worst projection sigma over the image (px) and the
+    sigma of X's rotation (deg) and translation (mm), norms over the axes."""
+
+    sigma_px: float = 0.1
+    rotation_deg: float = 0.01
+    translation_mm: float = 0.1
+
+
+@dataclass(frozen=True)
+class ArmSuggestion:
+    """A suggested view with the tool pose that takes it and the predicted sigmas."""
+
+    view: RankedView
+    tool: Transform  # T_base_tool
+    predicted_rotation_deg: float
+    predicted_translation_mm: float
+
+
+@dataclass(frozen=True)
+class ArmSuggestions:
+    sigma_px: float  # projection sigma over the image now (the joint problem's)
+    rotation_deg: float  # sigma of X now
+    translation_mm: float
+    suggestions: list[ArmSuggestion]
+    n_candidates: int  # feasible views inside the trust region
+
+
+def local_placements(model: ArmModel, target: Target, trust: TrustRegion) -> list[Placement]:
+    """Placements near those of the latest visited views (a tight trust region may admit nothing
+    of the coarse grid), each far enough to be a new view (:func:`.view_ranking.distinct`): turned
+    about the optical axis by +-25, +-45 and 90 degrees, tilted 20 degrees more or less, its tilt
+    axis turned by +-60 degrees, moved by a quarter of the image, 25 % nearer or 30 % farther."""
+    cam = model.predictor.camera_sized
+    out = []
+    for g in trust.visited[-LOCAL_VIEWS:]:
+        p = placement_of(target, cam, model.frames.camera_pose(g))
+        u, v = p.pixel
+        du, dv = 0.25 * cam.width, 0.25 * cam.height
+        out += [replace(p, roll_deg=p.roll_deg + r) for r in (-90.0, -45.0, -25.0, 25.0, 45.0, 90.0)]
+        out += [replace(p, tilt_deg=max(p.tilt_deg + d, 0.0)) for d in (-20.0, 20.0)]
+        out += [replace(p, axis_deg=p.axis_deg + d, roll_deg=p.roll_deg + r) for d in (-60.0, 60.0) for r in (-25, 25)]
+        out += [replace(p, pixel=(u + a, v + b)) for a, b in ((du, 0.0), (-du, 0.0), (0.0, dv), (0.0, -dv))]
+        out += [replace(p, distance=p.distance * f) for f in (0.75, 1.3)]
+    return out
+
+
+def arm_candidates(model: ArmModel, target: Target, trust: TrustRegion, grid: CandidateGrid = ARM_GRID,
+                   rules: Feasibility | None = None) -> tuple[list[tuple[Placement, Transform]], list[Transform]]:
+    """Feasible views whose tool pose lies in the trust region, and those tool poses: the grid's
+    placements and placements near the visited views (:func:`local_placements`)."""
+    cam = model.predictor.camera_sized
+    rules = rules or default_feasibility(target, cam.width)
+    placements = candidate_placements(cam, grid, target) + local_placements(model, target, trust)
+    cands = feasible_candidates(target, cam, placements, rules)
+    seen = [placement_of(target, cam, model.frames.camera_pose(g)) for g in trust.visited]
+    cands = unseen(cands, seen, cam.width, cam.height, roll_deg=20.0)
+    tools = [model.frames.tool_pose(pose) for _, pose in cands]
+    keep = [k for k, why in enumerate(trust.problems(tools)) if not why]
+    return [cands[k] for k in keep], [tools[k] for k in keep]
+
+
+def suggest_arm_views(model: ArmModel, target: Target, trust: TrustRegion, n: int = 5,
+                      goals: ArmGoals = ArmGoals(), grid: CandidateGrid = ARM_GRID,
+                      options: CalibrationOptions = CalibrationOptions()) -> ArmSuggestions:  # noqa: B008
+    """The ``n`` best tool poses (module docstring): ranked by (sigma_px / goal)^2, plus, once the
+    projection sigma is within :data:`ON_THEIR_WAY` x its goal, (sigma_rot / goal)^2 +
+    (sigma_trans / goal)^2 of X."""
+    pred = model.predictor
+    now = pred.sigma_now()
+    deg_now, mm_now = hand_eye_sigmas(model, pred.cov_now)
+    cands, tools = arm_candidates(model, target, trust, grid)
+    with_he = now <= ON_THEIR_WAY * goals.sigma_px
+
+    def score(p: Prediction, idx: list[int]) -> np.ndarray:
+        s = (p.sigma_px / goals.sigma_px) ** 2
+        if with_he:
+            deg, mm = hand_eye_sigmas(model, p.readout_cov)
+            s = s + (np.asarray(deg) / goals.rotation_deg) ** 2 + (np.asarray(mm) / goals.translation_mm) ** 2
+        return np.asarray(s)
+
+    ranked = rank_candidates(pred, target, cands, n, options, score,
+                             chain_of=lambda idx: chain_rows(model, [tools[i] for i in idx]))
+    by_pose = {id(c[1]): k for k, c in enumerate(cands)}
+    out = []
+    for r in ranked:
+        deg, mm = hand_eye_sigmas(model, r.readout_cov)
+        out.append(ArmSuggestion(r, tools[by_pose[id(r.pose)]], float(deg), float(mm)))
+    return ArmSuggestions(now, float(deg_now), float(mm_now), out, len(cands))

@@ -1,0 +1,166 @@
+"""The state of a guided session, ROS-free: what to show next, how well the live target matches
+it, and whether the accuracy asked for is reached. The node holds one :class:`GuideState`.
+
+- Until a calibration exists (fewer than 3 views) the suggestions are fixed bootstrap views
+  (:func:`..analysis.candidates.bootstrap_placements`) drawn with a guessed camera; then they are
+  ranked by their predicted effect (:func:`..analysis.view_ranking.suggest_views`).
+- A live detection matches the suggestion when the overlap (intersection over union) of the
+  target's outline as detected and as suggested is at least :data:`MATCH_OVERLAP` (0.85, the
+  threshold of pose_calib, Rojtberg & Kuijper 2018); a hint line says what to change first.
+- **Done** is decided by :meth:`GuideState.update` on the real projection uncertainty of the
+  recalibrated views, never on a prediction.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from ..analysis.candidates import bootstrap_placements, outline_points, place
+from ..analysis.view_ranking import RankedView, suggest_views
+from ..calibrate.refine import RefineResult
+from ..detect.detection import Detection
+from ..geometry.camera import Camera
+from ..geometry.transform import Transform
+from ..targets import Target
+
+MATCH_OVERLAP = 0.85
+RASTER = 4  # outlines are compared on a copy of the image this many times smaller
+
+
+def outline_polygon(target: Target, camera: Camera, pose: Transform) -> np.ndarray:
+    """Convex hull (K, 2) in pixels of the target's features at ``pose`` (camera_T_target)."""
+    P = outline_points(target)
+    X = pose.apply(np.c_[P, np.zeros(len(P))])
+    uv = camera.project(X)
+    uv = uv[np.all(np.isfinite(uv), 1)]
+    if len(uv) < 3:
+        return np.zeros((0, 2))
+    return cv2.convexHull(uv.astype(np.float32)).reshape(-1, 2).astype(float)
+
+
+def detection_polygon(det: Detection) -> np.ndarray:
+    """Convex hull (K, 2) of a detection's edge points and corners."""
+    parts = [np.asarray(e.points, float).reshape(-1, 2) for e in det.edges]
+    if det.corners is not None:
+        parts.append(np.asarray(det.corners, float).reshape(-1, 2))
+    pts = np.concatenate(parts) if parts else np.zeros((0, 2))
+    if len(pts) < 3:
+        return np.zeros((0, 2))
+    return cv2.convexHull(pts.astype(np.float32)).reshape(-1, 2).astype(float)
+
+
+def overlap(a: np.ndarray, b: np.ndarray, width: int, height: int) -> float:
+    """Intersection over union of two convex polygons (pixels) inside the image."""
+    if len(a) < 3 or len(b) < 3:
+        return 0.0
+    w, h = max(width // RASTER, 1), max(height // RASTER, 1)
+    ma, mb = np.zeros((h, w), np.uint8), np.zeros((h, w), np.uint8)
+    cv2.fillConvexPoly(ma, np.round(a / RASTER).astype(np.int32), 1)
+    cv2.fillConvexPoly(mb, np.round(b / RASTER).astype(np.int32), 1)
+    union = int(np.count_nonzero(ma | mb))
+    return float(np.count_nonzero(ma & mb)) / union if union else 0.0
+
+
+def hint(live: np.ndarray, wanted: np.ndarray, width: int, live_pose: Transform | None = None,
+         wanted_pose: Transform | None = None) -> str:
+    """One line for the person: the largest difference first (position, distance, then tilt when
+    both poses are known). Directions are the image's (left = towards column 0)."""
+    if len(live) < 3:
+        return "show the whole target"
+    ca, cb = live.mean(0), wanted.mean(0)
+    d = cb - ca
+    area_a, area_b = cv2.contourArea(live.astype(np.float32)), cv2.contourArea(wanted.astype(np.float32))
+    scale = np.sqrt(area_b / max(area_a, 1e-9))
+    if np.hypot(*d) > 0.06 * width:
+        if abs(d[0]) >= abs(d[1]):
+            return "move the target right" if d[0] > 0 else "move the target left"
+        return "move the target down" if d[1] > 0 else "move the target up"
+    if abs(np.log(scale)) > np.log(1.12):
+        return "bring the target closer" if scale > 1 else "move the target farther away"
+    if live_pose is not None and wanted_pose is not None:
+        dn = wanted_pose.R[:, 2] - live_pose.R[:, 2]  # the sheet's normal points away from the camera
+        if max(abs(dn[0]), abs(dn[1])) > np.sin(np.radians(6)):
+            if abs(dn[0]) >= abs(dn[1]):
+                return "turn the right side away" if dn[0] > 0 else "turn the left side away"
+            return "tilt the bottom away" if dn[1] > 0 else "tilt the top away"
+    return "match the outline"
+
+
+@dataclass(frozen=True)
+class Match:
+    """How a live detection compares with the suggestion."""
+
+    overlap: float
+    matched: bool  # overlap >= MATCH_OVERLAP
+    hint: str
+
+
+@dataclass
+class GuideState:
+    """A guided session (module docstring). ``camera_guess``: the camera used to draw bootstrap
+    suggestions before a calibration exists (a previous calibration, or a nominal one)."""
+
+    target: Target
+    camera_guess: Camera
+    goal_sigma_px: float = 0.1
+    n: int = 5
+    suggestions: list[RankedView] = field(default_factory=list)
+    index: int = 0
+    sigma_px: float = float("nan")  # worst projection sigma over the image of the captured views (real)
+    camera: Camera | None = None
+
+    def __post_init__(self) -> None:
+        if not self.suggestions:
+            self._bootstrap()
+
+    @property
+    def done(self) -> bool:
+        """The real projection uncertainty of the captured views reaches the goal."""
+        return bool(np.isfinite(self.sigma_px) and self.sigma_px <= self.goal_sigma_px)
+
+    @property
+    def current(self) -> RankedView | None:
+        return self.suggestions[self.index] if self.suggestions else None
+
+    def skip(self) -> RankedView | None:
+        """Move on to the next suggestion (round robin)."""
+        if self.suggestions:
+            self.index = (self.index + 1) % len(self.suggestions)
+        return self.current
+
+    def _bootstrap(self) -> None:
+        cam = self.camera_guess
+        self.suggestions = [RankedView(place(self.target, cam, p), p, float("nan"), np.zeros((0, 0)))
+                            for p in bootstrap_placements(cam, self.target)]
+        self.index = 0
+
+    def update(self, refinement: RefineResult | None, width: int, height: int, n_views: int) -> None:
+        """After a view was captured: with a calibration (``refinement``, of ``n_views`` >= 3
+        views) the real sigma and the ranked suggestions; without, the next bootstrap view."""
+        if refinement is None or refinement.covariance is None or n_views < 3:
+            self._bootstrap()
+            self.index = min(n_views, len(self.suggestions) - 1)
+            self.sigma_px = float("nan")
+            return
+        s = suggest_views(refinement, self.target, width, height, self.n)
+        self.sigma_px, self.camera, self.suggestions, self.index = s.sigma_px, s.camera, s.suggestions, 0
+
+    def outline(self) -> np.ndarray:
+        """The suggested target's outline (K, 2) in pixels, drawn with the current camera."""
+        s = self.current
+        if s is None:
+            return np.zeros((0, 2))
+        return outline_polygon(self.target, self.camera or self.camera_guess, s.pose)
+
+    def match(self, det: Detection, live_pose: Transform | None = None) -> Match:
+        """Compare a live detection with the suggestion (module docstring)."""
+        s = self.current
+        if s is None or not det.ok:
+            return Match(0.0, False, "show the whole target" if s is not None else "")
+        want, live = self.outline(), detection_polygon(det)
+        ov = overlap(live, want, det.width, det.height)
+        ok = ov >= MATCH_OVERLAP
+        return Match(ov, ok, "hold still" if ok else hint(live, want, det.width, live_pose, s.pose))

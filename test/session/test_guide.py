@@ -1,0 +1,72 @@
+"""The guided session's state (session/guide.py): bootstrap suggestions before a calibration,
+the outline match of a live detection with its hint, done from the real sigma only."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pascal_calib_ros.analysis.candidates import Placement, place
+from pascal_calib_ros.analysis.uncertainty import projection_uncertainty_of
+from pascal_calib_ros.calibrate.pipeline import calibrate
+from pascal_calib_ros.detect.target_detector import detect_target
+from pascal_calib_ros.geometry.camera import Camera
+from pascal_calib_ros.session.guide import MATCH_OVERLAP, GuideState, hint, overlap
+from pascal_calib_ros.sim.render import Pose, SensorModel, render_view
+from pascal_calib_ros.sim.session import SessionSpec
+from pascal_calib_ros.targets import Target
+
+W, H = 640, 480
+TRUE = SessionSpec(width=W, height=H, k1=-0.1).camera()
+
+
+def _shot(target: Target, T: object, seed: int = 0) -> object:
+    img = render_view(target, TRUE, Pose(T.R, T.translation), SensorModel(seed=seed)).image  # type: ignore[attr-defined]
+    return detect_target(img, target)
+
+
+def test_bootstrap_outline_match_and_hint(ring_target: Target) -> None:
+    guess = Camera.from_params(W, W, W / 2, H / 2, width=W, height=H)  # a nominal camera, no calibration yet
+    g = GuideState(ring_target, guess, goal_sigma_px=0.1)
+    assert len(g.suggestions) == 3 and not g.done and not np.isfinite(g.sigma_px)
+    s = g.current
+    assert s is not None and len(g.outline()) >= 3
+    det = _shot(ring_target, s.pose)
+    m = g.match(det)
+    assert m.overlap >= MATCH_OVERLAP and m.matched and m.hint == "hold still"
+    # the target held elsewhere: no match, and the hint names the way to go
+    off = place(ring_target, TRUE, Placement((0.72 * W, 0.5 * H), 1.3 * s.placement.distance, 10.0, 0.0, 0.0))
+    m2 = g.match(_shot(ring_target, off, 1))
+    assert not m2.matched and m2.overlap < 0.5
+    assert m2.hint == "move the target left"
+    assert g.skip() is g.suggestions[1]
+
+
+def test_hint_order() -> None:
+    sq = np.array([[0.0, 0.0], [100.0, 0.0], [100.0, 100.0], [0.0, 100.0]])
+    assert hint(sq, sq + np.array([0.0, 80.0]), 640) == "move the target down"
+    assert hint(sq, (sq - 50) * 1.5 + 50, 640) == "bring the target closer"
+    assert hint(sq, sq, 640) == "match the outline"
+    assert overlap(sq, sq, 640, 480) == pytest.approx(1.0)
+    assert overlap(sq, sq + np.array([200.0, 0.0]), 640, 480) == 0.0
+
+
+def test_done_comes_from_the_recalibrated_views(ring_target: Target) -> None:
+    """After the bootstrap views the state recalibrates: its sigma is the real one of those views
+    (not the prediction that chose them) and done follows the goal."""
+    guess = Camera.from_params(W, W, W / 2, H / 2, width=W, height=H)
+    g = GuideState(ring_target, guess, goal_sigma_px=1e-6)
+    dets = []
+    for k in range(3):
+        dets.append(_shot(ring_target, g.suggestions[k].pose, 10 + k))
+        g.update(None, W, H, len(dets))
+    extra = place(ring_target, TRUE, Placement((0.3 * W, 0.6 * H), g.suggestions[0].placement.distance, 40.0, 200.0,
+                                                0.0))
+    dets.append(_shot(ring_target, extra, 20))
+    res = calibrate(dets, ring_target)
+    g.update(res.refinement, W, H, len(dets))
+    now = projection_uncertainty_of(res.refinement, res.width, res.height)
+    assert g.sigma_px == pytest.approx(float(np.nanmax(now.sigma)), rel=1e-4)
+    assert not g.done and g.suggestions and all(s.predicted_sigma_px < g.sigma_px for s in g.suggestions)
+    g.goal_sigma_px = 2 * g.sigma_px
+    assert g.done

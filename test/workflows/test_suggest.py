@@ -1,0 +1,110 @@
+"""``pascal-calib suggest`` (workflows/suggest.py): NEXT.yaml with the issue's fields, exit 2 with
+the reason on bad input; arm suggestions stay inside the trust region."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from pascal_calib_ros.analysis.candidates import feature_centre
+from pascal_calib_ros.cli import main
+from pascal_calib_ros.geometry.transform import Transform
+from pascal_calib_ros.io.hand_eye_yaml import write_poses_yaml
+from pascal_calib_ros.sim.arm import ArmSpec, simulate_arm_session
+from pascal_calib_ros.sim.session import SessionSpec, render_session
+from pascal_calib_ros.targets import Target, resolve_target
+
+
+@pytest.fixture(scope="module")
+def views(tmp_path_factory: pytest.TempPathFactory, ring_target: Target) -> list[Path]:
+    out = tmp_path_factory.mktemp("suggest")
+    return render_session(ring_target, SessionSpec(width=640, height=480, k1=-0.2, views=4, seed=2), out)
+
+
+def test_next_yaml_has_the_fields_and_a_pose_that_puts_the_target_where_said(views: list[Path], tmp_path: Path,
+                                                                            capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "NEXT.yaml"
+    code = main(["suggest", "--target", "ring_a4", "-n", "3", "--goal-sigma", "0.05", "-o", str(out),
+                 *map(str, views)])
+    assert code == 0
+    doc = yaml.safe_load(out.read_text())
+    assert doc["done"] is False and doc["goal_sigma_px"] == 0.05
+    assert doc["projection_sigma_px"] > 0.05 and doc["views_used"] == 4
+    assert 1 <= len(doc["suggestions"]) <= 3
+    sig = [s["predicted_sigma_px"] for s in doc["suggestions"]]
+    assert sig == sorted(sig) and sig[0] < doc["projection_sigma_px"]
+    target = resolve_target("ring_a4")
+    for s in doc["suggestions"]:
+        T = s["camera_T_target"]
+        assert len(T["translation"]) == 3 and len(T["rotation"]) == 4
+        pose = Transform.from_quat(T["rotation"], T["translation"])
+        # X_cam = R X_target + t: the ring's centre (target YAML frame) lies at the placement's distance
+        centre = pose.apply(np.r_[target.rings[0].center, 0.0])
+        assert np.linalg.norm(centre) == pytest.approx(s["placement"]["distance_m"], rel=1e-3)
+    assert "next views" in capsys.readouterr().out
+    # a goal already met: done
+    code = main(["suggest", "--target", "ring_a4", "--goal-sigma", "1000", "-o", str(out), *map(str, views)])
+    assert code == 0 and yaml.safe_load(out.read_text())["done"] is True
+
+
+def test_bad_input_exits_2_with_the_reason(views: list[Path], tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "NEXT.yaml"
+    assert main(["suggest", "--target", "ring_a4", "-o", str(out), str(views[0]), str(views[1])]) == 2
+    assert "need at least 3" in capsys.readouterr().err
+    assert main(["suggest", "--target", "no_such_target", "-o", str(out), *map(str, views)]) == 2
+    assert "target file not found" in capsys.readouterr().err
+    assert main(["suggest", "--target", "ring_a4", "--poses", str(tmp_path / "p.yaml"), "-o", str(out),
+                 *map(str, views)]) == 2
+    assert "--mode" in capsys.readouterr().err
+    assert main(["suggest", "--target", "ring_a4", "--goal-sigma", "0", "-o", str(out), *map(str, views)]) == 2
+    assert "--goal-sigma" in capsys.readouterr().err
+    assert main(["suggest", "--target", "ring_a4", "--mode", "eye_in_hand", "--poses", str(tmp_path / "none.yaml"),
+                 "-o", str(out), *map(str, views)]) == 2
+    assert "cannot read" in capsys.readouterr().err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("mode", ["eye_in_hand", "eye_to_hand"])
+def test_arm_suggestions_stay_within_reach_and_max_turn(tmp_path: Path, mode: str) -> None:
+    target = resolve_target("ring_grid_a4")
+    s = simulate_arm_session(target, ArmSpec(mode=mode, views=5, width=640, height=480, seed=3, systematic_mm=0.0))
+    paths = []
+    import cv2
+
+    for name, img in zip(s.names, s.images[target.name], strict=True):
+        cv2.imwrite(str(tmp_path / name), img)
+        paths.append(tmp_path / name)
+    write_poses_yaml(tmp_path / "POSES.yaml", "base_link", "tool0", dict(zip(s.names, s.robot_poses, strict=True)))
+    out = tmp_path / "NEXT.yaml"
+    reach, turn = 0.1, 30.0
+    code = main(["suggest", "--target", "ring_grid_a4", "--poses", str(tmp_path / "POSES.yaml"), "--mode",
+                 mode, "--reach", str(reach), "--max-turn", str(turn), "-n", "4", "-o", str(out),
+                 *map(str, paths)])
+    assert code == 0
+    doc = yaml.safe_load(out.read_text())
+    assert doc["mode"] == mode and doc["frame_id"] == "base_link" and doc["child_frame_id"] == "tool0"
+    assert doc["hand_eye_sigma_deg"] > 0 and doc["hand_eye_sigma_mm"] > 0
+    assert doc["suggestions"], "no suggestion inside the trust region"
+    visited = s.robot_poses
+    for sg in doc["suggestions"]:
+        tool = Transform.from_quat(sg["tool"]["rotation"], sg["tool"]["translation"])
+        d = min(np.linalg.norm(tool.translation - v.translation) for v in visited)
+        a = min((tool.rotation * v.rotation.inv()).magnitude() for v in visited)
+        assert d <= reach + 1e-9 and np.degrees(a) <= turn + 1e-6
+        assert sg["predicted_hand_eye_sigma_deg"] > 0
+        # the tool pose and the view agree through the estimated hand-eye loop: the true loop puts
+        # the target's features where the suggestion says (up to the grid's 180 degree symmetry, which
+        # the session's labelling may have chosen: the features' centre and the sheet's normal agree)
+        C = s.hand_eye.inverse() @ (tool.inverse() if mode == "eye_in_hand" else tool) @ s.target_pose
+        want = Transform.from_quat(sg["camera_T_target"]["rotation"], sg["camera_T_target"]["translation"])
+        c = np.r_[feature_centre(target), 0.0]
+        assert np.linalg.norm(C.apply(c) - want.apply(c)) < 0.01
+        assert np.degrees(np.arccos(np.clip(C.R[:, 2] @ want.R[:, 2], -1, 1))) < 1.0
+    # a trust region that excludes everything but the visited poses themselves gives no tool pose far away
+    code = main(["suggest", "--target", "ring_grid_a4", "--poses", str(tmp_path / "POSES.yaml"), "--mode",
+                 mode, "--reach", "0.001", "--max-turn", "0.1", "-o", str(out), *map(str, paths)])
+    assert code == 0 and yaml.safe_load(out.read_text())["suggestions"] == []
