@@ -61,7 +61,7 @@ from ..workflows.outputs import (
 from ..workflows.verify import hand_eye_reference_of_result, reference_of_file, reference_of_result, verify_views
 from .commit import commit_camera_info
 from .conversions import camera_info_msg, transform_msg
-from .params import PARAMS, ParameterError, declare_parameters, validate_parameters
+from .params import ParameterError, declare_parameters, params_for, validate_parameters
 from .robot_poses import RobotPoseInput
 from .status import status_message
 
@@ -143,7 +143,7 @@ class CalibrationNode(Node):
         return self.get_parameter(name).value
 
     def values(self) -> dict[str, Any]:
-        return {p.name: self.p(p.name) for p in PARAMS}
+        return {p.name: self.p(p.name) for p in params_for("mono")}
 
     @property
     def method(self) -> str:
@@ -478,9 +478,10 @@ class CalibrationNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
+    from .node_mode import make_calibration_node
     from .spin import run_node
 
-    return run_node(CalibrationNode, (PascalCalibError,), "pascal_calib",
+    return run_node(make_calibration_node, (PascalCalibError,), "pascal_calib",
                     lambda: MultiThreadedExecutor(num_threads=6), args)
 
 
