@@ -481,7 +481,7 @@ def main(args: list[str] | None = None) -> int:
     from .node_mode import make_calibration_node
     from .spin import run_node
 
-    return run_node(make_calibration_node, (PascalCalibError,), "pascal_calib",
+    return run_node(lambda: make_calibration_node(CalibrationNode), (PascalCalibError,), "pascal_calib",
                     lambda: MultiThreadedExecutor(num_threads=6), args)
 
 

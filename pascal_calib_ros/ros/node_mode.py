@@ -8,6 +8,8 @@ node's name reads them and is destroyed before the real node is created.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import rclpy
 from rclpy.node import Node
 
@@ -23,13 +25,11 @@ def requested_mode(node_name: str = "pascal_calib") -> str:
         probe.destroy_node()
 
 
-def make_calibration_node() -> Node:
-    """The node of the ``mode`` parameter: the mono :class:`~.calibration_node.CalibrationNode` or
-    the :class:`~.stereo_node.StereoCalibrationNode`."""
+def make_calibration_node(mono: Callable[[], Node]) -> Node:
+    """The node of the ``mode`` parameter: ``mono()`` (the
+    :class:`~.calibration_node.CalibrationNode`) or the :class:`~.stereo_node.StereoCalibrationNode`."""
     if requested_mode("pascal_calib") == "stereo":
         from .stereo_node import StereoCalibrationNode
 
         return StereoCalibrationNode()
-    from .calibration_node import CalibrationNode
-
-    return CalibrationNode()
+    return mono()
