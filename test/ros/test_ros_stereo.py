@@ -17,9 +17,9 @@ import pytest
 from ros_harness import NodeProcess, RosClient, latest_status, next_domain_id, require_netns, status_subscription
 from scipy.spatial.transform import Rotation
 
+from pascal_calib_ros.cli import main as cli_main
 from pascal_calib_ros.io.camera_yaml import read_camera_yaml
 from pascal_calib_ros.io.images import read_grey
-from pascal_calib_ros.io.stereo_bags import write_stereo_bag
 from pascal_calib_ros.io.stereo_yaml import read_stereo_yaml
 from pascal_calib_ros.sim.rig import RigSession, RigSpec, render_rig, stereo_pair, write_rig
 from pascal_calib_ros.targets import resolve_target
@@ -79,7 +79,9 @@ def _rotation_deg(a: np.ndarray, b: np.ndarray) -> float:
 def test_replayed_stereo_session_gives_the_cli_result_and_commits_to_each_driver(
         tmp_path: Path, rig: tuple[Path, RigSession]) -> None:
     from geometry_msgs.msg import TransformStamped
-    from sensor_msgs.msg import CameraInfo
+    from sensor_msgs.msg import CameraInfo, Image
+
+    from pascal_calib_ros.session.overlay import panel_width
 
     rig_dir, session = rig
     cli = _cli(rig_dir, tmp_path / "cli")
@@ -94,12 +96,16 @@ def test_replayed_stereo_session_gives_the_cli_result_and_commits_to_each_driver
     client = RosClient(dom)
     try:
         status = status_subscription(client)
+        pictures: list = []
+        client.node.create_subscription(Image, "/pascal_calib/detections", pictures.append, 10)
         assert client.spin_until(lambda: rep.proc.poll() is not None, 90), rep.log()
         assert rep.wait(1) == 0, rep.log()
         assert "replaying 7 stereo shot(s)" in rep.log() and "14 examined by the calibration node" in rep.log()
         assert client.spin_until(lambda: latest_status(status).get("pairs_examined") == "7", 10), cal.log()
         st = latest_status(status)
         assert st["shots_both"] == "6" and st["frames_unpaired_left"] == "0" and st["pairs_dropped"] == "0", st
+        # ~/detections: both cameras side by side, each with its panel
+        assert pictures and (pictures[-1].width, pictures[-1].height) == (2 * (640 + panel_width(480)), 480)
         r = client.call_trigger("/pascal_calib/commit")
         assert not r.success and "no calibration to commit" in r.message
         r = client.call_trigger("/pascal_calib/calibrate", timeout=240.0)
@@ -176,6 +182,7 @@ def _image(img: np.ndarray, stamp_ns: int, frame_id: str) -> Any:
 def test_frames_that_never_pair_too_few_shots_and_a_degenerate_set_are_refused(
         tmp_path: Path, rig: tuple[Path, RigSession]) -> None:
     from diagnostic_msgs.msg import DiagnosticStatus
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import Image
 
     rig_dir, _ = rig
@@ -185,7 +192,10 @@ def test_frames_that_never_pair_too_few_shots_and_a_degenerate_set_are_refused(
     client = RosClient(dom)
     try:
         status = status_subscription(client)
-        pubs = [client.node.create_publisher(Image, f"/{side}/image", 5) for side in ("left", "right")]
+        # the right driver publishes best effort: the node matches each topic's QoS on its own
+        best_effort = QoSProfile(depth=5, reliability=ReliabilityPolicy.BEST_EFFORT)
+        pubs = [client.node.create_publisher(Image, "/left/image", 5),
+                client.node.create_publisher(Image, "/right/image", best_effort)]
         assert client.spin_until(lambda: all(p.get_subscription_count() for p in pubs), 30), cal.log()
         client.spin_until(lambda: False, 0.5)
         t0 = time.time_ns()
@@ -202,6 +212,7 @@ def test_frames_that_never_pair_too_few_shots_and_a_degenerate_set_are_refused(
         st = latest_status(status)
         assert "their stamps differ by 0.500 s, more than sync_slop 0.02 s" in st["sync_note"], st
         assert status[-1].status[0].level == DiagnosticStatus.ERROR and st["pairs"] == "0", status[-1].status[0]
+        assert (st["qos_left"], st["qos_right"]) == ("reliable", "best_effort")
         r = client.call_trigger("/pascal_calib/calibrate")
         assert not r.success and "0 shot(s) seen by both cameras; need 3" in r.message, r.message
         assert "frames arrive but never pair" in r.message and "0.500 s" in r.message, r.message
@@ -233,8 +244,9 @@ def test_stereo_bag_replay_pairs_unsynchronised_frames(tmp_path: Path, rig: tupl
     """A bag of two image topics, the right camera 5 ms behind: the replay pairs them by recorded stamp
     and the node stores the same shots as from the folders (no frame unpaired or dropped)."""
     rig_dir, _ = rig
-    left, right = (sorted((rig_dir / side).glob("*.png")) for side in ("left", "right"))
-    bag = write_stereo_bag(tmp_path / "bag", left, right, storage="mcap", compressed=True, right_delay=0.005)
+    bag = tmp_path / "bag"
+    assert cli_main(["bag", "--out", str(bag), "--left", str(rig_dir / "left"), "--right", str(rig_dir / "right"),
+                     "--storage", "mcap", "--compressed", "--right-delay", "0.005"]) == 0
     dom = next_domain_id()
     cal = NodeProcess("calibration_node", {**NODE, "transport": "compressed"}, dom, tmp_path / "cal.log")
     rep = NodeProcess("replay_node", {"source": str(bag), "left_bag_topic": "/left/image_raw",
