@@ -179,6 +179,21 @@ def _image(img: np.ndarray, stamp_ns: int, frame_id: str) -> Any:
     return msg
 
 
+def _set_parameter(client: RosClient, name: str, value: float) -> Any:
+    """Set one double parameter of the node through its set_parameters service; the SetParametersResult."""
+    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+    from rcl_interfaces.srv import SetParameters
+
+    cli = client.node.create_client(SetParameters, "/pascal_calib/set_parameters")
+    assert client.spin_until(cli.service_is_ready, 10)
+    client.spin_until(lambda: False, 0.5)  # let the response reader match (see RosClient.call_trigger)
+    req = SetParameters.Request(parameters=[Parameter(name=name, value=ParameterValue(
+        type=ParameterType.PARAMETER_DOUBLE, double_value=value))])
+    fut = cli.call_async(req)
+    assert client.spin_until(fut.done, 10)
+    return fut.result().results[0]
+
+
 def test_frames_that_never_pair_too_few_shots_and_a_degenerate_set_are_refused(
         tmp_path: Path, rig: tuple[Path, RigSession]) -> None:
     from diagnostic_msgs.msg import DiagnosticStatus
@@ -234,6 +249,12 @@ def test_frames_that_never_pair_too_few_shots_and_a_degenerate_set_are_refused(
         n = len(status)
         assert client.spin_until(lambda: len(status) > n + 1, 5)
         assert client.node.count_publishers("/pascal_calib/left/camera_info") == 1
+        # at run time: a negative slop is refused; a slop above the stamp difference pairs those frames
+        assert not _set_parameter(client, "sync_slop", -1.0).successful
+        assert _set_parameter(client, "sync_slop", 0.6).successful
+        send(1, 1, t0 + 30 * 10**9, t0 + 30 * 10**9 + 5 * 10**8)
+        assert client.spin_until(lambda: latest_status(status).get("shots_both") == "4", 20), cal.log()
+        assert latest_status(status)["last_pair_stamp_difference_s"] == "0.500000"
     finally:
         client.close()
         assert cal.stop() == 0, cal.log()
