@@ -58,7 +58,8 @@ from ..workflows.stereo_session import (
     answer_line,
     calibrate_session,
     stereo_output_dir,
-    write_session_outputs,
+    write_session_files,
+    write_session_report,
 )
 from .commit import commit_pair
 from .conversions import camera_info_msg, image_msg, transform_msg
@@ -313,24 +314,26 @@ class StereoCalibrationNode(Node):
         except (CalibrationError, PascalCalibError) as e:
             return self._refuse(f"{e} (nothing published; the previous result stays)")
         out_dir = stereo_output_dir(str(self.p("camera_name")), str(self.p("output_dir")))
-        frames = Path(str(self.p("output_dir"))) if self.p("output_dir") else None
-
-        def frame_of(c: int, name: str) -> Path | None:
-            p = frames / SIDES[c] / f"{name}.png" if frames is not None else None
-            return p if p is not None and p.exists() else None
-
         try:
-            files, self.report_note = write_session_outputs(outcome, dets, self.target, out_dir,
-                                                            frame_of if frames is not None else None)
+            files = write_session_files(outcome, out_dir)
         except OSError as e:
             return self._refuse(f"cannot write the calibration files in {out_dir}: {e} (nothing published)")
-        if self.report_note:
-            self.get_logger().warn(self.report_note)
         self._publish(outcome)
         self.result_line = answer_line(outcome, files)
         self.get_logger().info(f"stereo calibrated: {self.result_line}")
+        self.report_note = ""
+        if self.p("output_dir"):  # the stored frames are there: the reports, after the result is out
+            frames = Path(str(self.p("output_dir")))
+
+            def frame_of(c: int, name: str) -> Path | None:
+                p = frames / SIDES[c] / f"{name}.png"
+                return p if p.exists() else None
+
+            _, self.report_note = write_session_report(outcome, dets, self.target, frames / "report", frame_of)
+            if self.report_note:
+                self.get_logger().warn(self.report_note)
         self.publish_status()
-        return True, self.result_line
+        return True, self.result_line + (f"; {self.report_note}" if self.report_note else "")
 
     def _publish(self, outcome: StereoOutcome) -> None:
         infos = outcome.camera_infos()

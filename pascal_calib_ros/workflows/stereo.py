@@ -201,6 +201,13 @@ def stereo_from_detections(dets: list[list[Detection]], target: Target, options:
     if len(dets) != 2:
         raise PairingError(f"a stereo pair has two cameras, got {len(dets)}")
     rig = calibrate_rig(dets, target, ["left", "right"], options.rig, [d.name for d in dets[0]])
+    return stereo_outcome(rig, dets, target, options, out_dir)
+
+
+def stereo_outcome(rig: RigResult, dets: list[list[Detection]], target: Target, options: StereoOptions,
+                   out_dir: str | Path | None = None) -> StereoOutcome:
+    """A calibrated pair's rectification, epipolar RMS, stereo.yaml data, lines and (with
+    ``out_dir``) files (:func:`stereo_from_detections` after the calibration)."""
     left, right = rig.cameras[0].camera(), rig.cameras[1].camera()
     E = rig.extrinsics[1]
     rect = rectify_pair(left, right, E.R, E.translation, options.alpha)

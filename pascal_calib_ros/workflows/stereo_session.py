@@ -3,27 +3,28 @@
 :func:`calibrate_session` is :func:`~.stereo.stereo_from_detections` (the CLI's ``pascal-calib
 stereo`` on the same detections gives the same numbers) followed by the checks a published
 calibration must pass (:func:`stereo_doubts`); only then are the files written
-(:func:`write_session_outputs`): ``left.yaml``, ``right.yaml``, ``stereo.yaml`` as the CLI writes
+(:func:`write_session_files`): ``left.yaml``, ``right.yaml``, ``stereo.yaml`` as the CLI writes
 them, each camera's calibration record (``left.calibration.json``, ``right.calibration.json``:
 the covariance ``pascal-calib verify`` and ``export`` need) and, when the frames were kept, each
-camera's report and the pair's page in ``report/``.
+camera's report and the pair's page (:func:`write_session_report`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from ..analysis.rig import assess_rig
 from ..calibrate.options import CalibrationOptions
-from ..calibrate.rig import RigOptions
+from ..calibrate.rig import RigOptions, RigResult
 from ..detect.detection import Detection
 from ..errors import PascalCalibError
+from ..io.calibration_json import sidecar_path, write_calibration_json
 from ..targets import Target
-from .outputs import write_calibration_record
+from .calibration_record import record_of_calibration
 from .stereo import Pairing, StereoOptions, StereoOutcome, stereo_from_detections, write_reports
 
 # a published rig transform must be known at least this well (the hand-eye node's limits)
@@ -94,28 +95,49 @@ def calibrate_session(dets: list[list[Detection]], target: Target, options: Ster
     return outcome
 
 
+def rig_intrinsic_covariance(rig: RigResult, c: int) -> tuple[tuple[str, ...], np.ndarray | None]:
+    """(names, covariance) of camera ``c``'s estimated intrinsics in the joint estimate: their block
+    of the rig's sandwich covariance, the marginal covariance with the other camera, the rig
+    transform and every shot pose estimated too (what ``calibration.json`` holds for one camera,
+    :func:`~.calibration_record.intrinsic_covariance`). None without a covariance."""
+    prob = rig.problem
+    sub = prob.subs[c]
+    names = tuple(sub.names[i] for i in sub.free)
+    if rig.covariance is None:
+        return names, None
+    a, b = int(prob.intr_start[c]), int(prob.intr_start[c + 1])
+    return names, np.asarray(rig.covariance[a:b, a:b], float).copy()
+
+
 ShotImage = Callable[[int, str], "Path | None"]  # (camera, shot name) -> its stored frame, if kept
 
 
-def write_session_outputs(outcome: StereoOutcome, dets: list[list[Detection]], target: Target, out_dir: str | Path,
-                          frame_of: ShotImage | None = None) -> tuple[list[Path], str]:
-    """The files of a checked calibration (module docstring) in ``out_dir``; with ``frame_of`` (the
-    stored frames) also the reports in ``out_dir/report``. Returns the files and a note when the
-    report could not be written (a report never costs the calibration)."""
-    out = Path(out_dir)
-    files = outcome.write(out)
-    for c, a in enumerate(assess_rig(outcome.rig)):
-        files.append(write_calibration_record(a, files[c], f"{outcome.camera_name}/{outcome.rig.names[c]}"))
-    if frame_of is None:
-        return files, ""
+def write_session_files(outcome: StereoOutcome, out_dir: str | Path) -> list[Path]:
+    """The files of a checked calibration in ``out_dir``: ``left.yaml``, ``right.yaml``,
+    ``stereo.yaml`` and each camera's calibration record (its covariance from the joint estimate,
+    :func:`rig_intrinsic_covariance`)."""
+    assessed = assess_rig(outcome.rig)  # before any file: a failure here leaves nothing half written
+    files = outcome.write(Path(out_dir))
+    for c, a in enumerate(assessed):
+        record = record_of_calibration(a, f"{outcome.camera_name}/{outcome.rig.names[c]}")
+        params, cov = rig_intrinsic_covariance(outcome.rig, c)
+        if cov is not None:
+            record = replace(record, parameters=params, covariance=cov)
+        files.append(write_calibration_json(sidecar_path(files[c]), record))
+    return files
+
+
+def write_session_report(outcome: StereoOutcome, dets: list[list[Detection]], target: Target, report_dir: str | Path,
+                         frame_of: ShotImage) -> tuple[list[Path], str]:
+    """Each camera's report and the pair's page in ``report_dir``, the images read through
+    ``frame_of`` (the node's stored frames); returns the files and, when the report could not be
+    written, why (a report never costs the calibration)."""
     names = [d.name for d in dets[0]]
-    paths = [[frame_of(c, n) for n in names] for c in (0, 1)]
-    pairing = Pairing(names, paths, "as stored by the node")
+    pairing = Pairing(names, [[frame_of(c, n) for n in names] for c in (0, 1)], "as stored by the node")
     try:
-        files += write_reports(outcome.rig, dets, pairing, out / "report", outcome, target)
+        return write_reports(outcome.rig, dets, pairing, report_dir, outcome, target), ""
     except Exception as e:  # a report must never cost the calibration
-        return files, f"report not written: {type(e).__name__}: {e}"
-    return files, ""
+        return [], f"report not written: {type(e).__name__}: {e}"
 
 
 def answer_line(outcome: StereoOutcome, files: list[Path]) -> str:
