@@ -54,10 +54,20 @@ def _node_session(rig: Path, out: Path, report: bool) -> tuple[float, list[float
     try:
         if not client.spin_until(lambda: rep.proc.poll() is not None, 300):
             raise SystemExit(f"the replay did not finish:\n{rep.log()}")
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+        from sensor_msgs.msg import CameraInfo
+
+        arrived: list[float] = []
+        client.node.create_subscription(CameraInfo, "/pascal_calib/left/camera_info",
+                                        lambda _m: arrived.append(time.perf_counter()),
+                                        QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                                                   durability=DurabilityPolicy.TRANSIENT_LOCAL))
         client.spin_until(lambda: False, 1.0)
         t = time.perf_counter()
         r = client.call_trigger("/pascal_calib/calibrate", timeout=600.0)
         dt = time.perf_counter() - t
+        if arrived:
+            print(f"~/left/camera_info arrived {arrived[0] - t:.1f} s after the ~/calibrate call")
     finally:
         client.close()
         cal.stop()
