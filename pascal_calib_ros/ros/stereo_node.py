@@ -58,7 +58,6 @@ from ..workflows.stereo_session import (
     answer_line,
     calibrate_session,
     stereo_output_dir,
-    write_session_files,
     write_session_report,
 )
 from .commit import commit_pair
@@ -315,7 +314,7 @@ class StereoCalibrationNode(Node):
             return self._refuse(f"{e} (nothing published; the previous result stays)")
         out_dir = stereo_output_dir(str(self.p("camera_name")), str(self.p("output_dir")))
         try:
-            files = write_session_files(outcome, out_dir)
+            files = outcome.write(out_dir)
         except OSError as e:
             return self._refuse(f"cannot write the calibration files in {out_dir}: {e} (nothing published)")
         self._publish(outcome)

@@ -3,28 +3,25 @@
 :func:`calibrate_session` is :func:`~.stereo.stereo_from_detections` (the CLI's ``pascal-calib
 stereo`` on the same detections gives the same numbers) followed by the checks a published
 calibration must pass (:func:`stereo_doubts`); only then are the files written
-(:func:`write_session_files`): ``left.yaml``, ``right.yaml``, ``stereo.yaml`` as the CLI writes
-them, each camera's calibration record (``left.calibration.json``, ``right.calibration.json``:
-the covariance ``pascal-calib verify`` and ``export`` need) and, when the frames were kept, each
-camera's report and the pair's page (:func:`write_session_report`).
+(:meth:`~.stereo.StereoOutcome.write`): ``left.yaml``, ``right.yaml``, ``stereo.yaml`` and each
+camera's calibration record (``left.calibration.json``, ``right.calibration.json``: the covariance
+``pascal-calib verify`` and ``export`` need), as the CLI writes them, and, when the frames were
+kept, each camera's report and the pair's page (:func:`write_session_report`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..analysis.rig import assess_rig
 from ..calibrate.options import CalibrationOptions
-from ..calibrate.rig import RigOptions, RigResult
+from ..calibrate.rig import RigOptions
 from ..detect.detection import Detection
 from ..errors import PascalCalibError
-from ..io.calibration_json import sidecar_path, write_calibration_json
 from ..targets import Target
-from .calibration_record import record_of_calibration
 from .stereo import Pairing, StereoOptions, StereoOutcome, stereo_from_detections, write_reports
 
 # a published rig transform must be known at least this well (the hand-eye node's limits)
@@ -95,36 +92,7 @@ def calibrate_session(dets: list[list[Detection]], target: Target, options: Ster
     return outcome
 
 
-def rig_intrinsic_covariance(rig: RigResult, c: int) -> tuple[tuple[str, ...], np.ndarray | None]:
-    """(names, covariance) of camera ``c``'s estimated intrinsics in the joint estimate: their block
-    of the rig's sandwich covariance, the marginal covariance with the other camera, the rig
-    transform and every shot pose estimated too (what ``calibration.json`` holds for one camera,
-    :func:`~.calibration_record.intrinsic_covariance`). None without a covariance."""
-    prob = rig.problem
-    sub = prob.subs[c]
-    names = tuple(sub.names[i] for i in sub.free)
-    if rig.covariance is None:
-        return names, None
-    a, b = int(prob.intr_start[c]), int(prob.intr_start[c + 1])
-    return names, np.asarray(rig.covariance[a:b, a:b], float).copy()
-
-
 ShotImage = Callable[[int, str], "Path | None"]  # (camera, shot name) -> its stored frame, if kept
-
-
-def write_session_files(outcome: StereoOutcome, out_dir: str | Path) -> list[Path]:
-    """The files of a checked calibration in ``out_dir``: ``left.yaml``, ``right.yaml``,
-    ``stereo.yaml`` and each camera's calibration record (its covariance from the joint estimate,
-    :func:`rig_intrinsic_covariance`)."""
-    assessed = assess_rig(outcome.rig)  # before any file: a failure here leaves nothing half written
-    files = outcome.write(Path(out_dir))
-    for c, a in enumerate(assessed):
-        record = record_of_calibration(a, f"{outcome.camera_name}/{outcome.rig.names[c]}")
-        params, cov = rig_intrinsic_covariance(outcome.rig, c)
-        if cov is not None:
-            record = replace(record, parameters=params, covariance=cov)
-        files.append(write_calibration_json(sidecar_path(files[c]), record))
-    return files
 
 
 def write_session_report(outcome: StereoOutcome, dets: list[list[Detection]], target: Target, report_dir: str | Path,

@@ -18,7 +18,6 @@ from pascal_calib_ros.workflows.stereo_session import (
     answer_line,
     stereo_doubts,
     stereo_output_dir,
-    write_session_files,
 )
 
 
@@ -43,7 +42,7 @@ def test_a_good_pair_has_no_doubts_and_bad_ones_say_why(outcome: StereoOutcome) 
 
 
 def test_files_records_and_answer(outcome: StereoOutcome, tmp_path: Path) -> None:
-    files = write_session_files(outcome, tmp_path)
+    files = outcome.write(tmp_path)
     assert [f.name for f in files] == ["left.yaml", "right.yaml", "stereo.yaml",
                                                       "left.calibration.json", "right.calibration.json"]
     for c, side in enumerate(("left", "right")):
