@@ -25,11 +25,51 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="geometry_msgs/PoseStamped or TransformStamped")
     g.add_argument("--hold", type=float, default=1.0, help="with --poses: seconds the arm rests at each pose")
     g.add_argument("--pose-rate", type=float, default=20.0, help="with --poses: pose messages per second")
-    g.add_argument("images", nargs="+")
+    g.add_argument("--left", nargs="+", metavar="GLOB", help="a stereo session: the left camera's images (folder, "
+                                                             "files or glob; with --right), paired as `pascal-calib "
+                                                             "stereo` pairs them")
+    g.add_argument("--right", nargs="+", metavar="GLOB", help="a stereo session: the right camera's images")
+    g.add_argument("--stereo-topics", nargs=2, default=["/left/image_raw", "/right/image_raw"],
+                   metavar=("LEFT", "RIGHT"), help="a stereo session's two image topics")
+    g.add_argument("--right-delay", type=float, default=0.0,
+                   help="a stereo session: the right frames' stamps this many seconds after the left's (0: "
+                        "synchronised cameras)")
+    g.add_argument("images", nargs="*")
     g.set_defaults(func=run)
 
 
+def run_stereo(args: argparse.Namespace) -> int:
+    """``--left``/``--right``: a stereo session's two image topics, one shot per pair of files."""
+    from ..io.stereo_bags import write_stereo_bag
+    from ..workflows.stereo import PairingError, expand_glob, pair_files
+
+    if args.images or args.poses or not (args.left and args.right):
+        error("a stereo bag takes --left and --right (no other images, no --poses)")
+        return EXIT_INPUT
+    try:
+        pairing = pair_files([[q for a in arg for q in expand_glob(a)] for arg in (args.left, args.right)],
+                             ["left", "right"])
+    except PairingError as e:
+        error(str(e))
+        return EXIT_INPUT
+    pairs = [(lp, rp) for lp, rp in zip(*pairing.paths, strict=True) if lp is not None and rp is not None]
+    try:
+        out = write_stereo_bag(args.out, [lp for lp, _ in pairs], [rp for _, rp in pairs],
+                               topics=tuple(args.stereo_topics), storage=args.storage, compressed=args.compressed,
+                               rate=args.rate, right_delay=args.right_delay)
+    except (BagError, ImageReadError) as e:
+        error(str(e))
+        return EXIT_INPUT
+    kind = "CompressedImage" if args.compressed else "Image"
+    skipped = f"; without a partner (not written): {', '.join(pairing.unmatched)}" if pairing.unmatched else ""
+    print(f"wrote {len(pairs)} stereo shot(s) (paired {pairing.how}) as sensor_msgs/{kind} on "
+          f"{' and '.join(args.stereo_topics)} to {out} ({args.storage}){skipped}")
+    return EXIT_OK
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.left or args.right:
+        return run_stereo(args)
     paths = expand_image_args(args.images)
     if not paths:
         print("error: no images given", file=sys.stderr)

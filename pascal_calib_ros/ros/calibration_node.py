@@ -61,7 +61,8 @@ from ..workflows.outputs import (
 from ..workflows.verify import hand_eye_reference_of_result, reference_of_file, reference_of_result, verify_views
 from .commit import commit_camera_info
 from .conversions import camera_info_msg, transform_msg
-from .params import PARAMS, ParameterError, declare_parameters, validate_parameters
+from .image_subscription import MatchedImageSubscription
+from .params import ParameterError, declare_parameters, params_for, validate_parameters
 from .robot_poses import RobotPoseInput
 from .status import status_message
 
@@ -130,12 +131,12 @@ class CalibrationNode(Node):
         self.create_service(Trigger, "~/verify", self._srv_verify, callback_group=services)
         self.set_info_client = self.create_client(SetCameraInfo, self.p("set_camera_info_service"),
                                                   callback_group=services)
-        self._image_group = MutuallyExclusiveCallbackGroup()
-        self.sub: Any = None
-        self.sub_reliability: ReliabilityPolicy | None = None
-        self.topic = "image/compressed" if self.p("transport") == "compressed" else "image"
-        self._ensure_subscription()
-        self.create_timer(1.0, self._ensure_subscription, callback_group=MutuallyExclusiveCallbackGroup())
+        compressed = self.p("transport") == "compressed"
+        self.topic = "image/compressed" if compressed else "image"
+        self.image_sub = MatchedImageSubscription(self, self.topic, CompressedImage if compressed else Image,
+                                                  self._on_image, lambda: str(self.p("qos")),
+                                                  MutuallyExclusiveCallbackGroup())
+        self.create_timer(1.0, self.image_sub.ensure, callback_group=MutuallyExclusiveCallbackGroup())
         self.create_timer(1.0, self.publish_status, callback_group=MutuallyExclusiveCallbackGroup())
 
     # -- parameters ------------------------------------------------------------------
@@ -143,7 +144,7 @@ class CalibrationNode(Node):
         return self.get_parameter(name).value
 
     def values(self) -> dict[str, Any]:
-        return {p.name: self.p(p.name) for p in PARAMS}
+        return {p.name: self.p(p.name) for p in params_for("mono")}
 
     @property
     def method(self) -> str:
@@ -168,31 +169,6 @@ class CalibrationNode(Node):
         return SetParametersResult(successful=True)
 
     # -- image input ------------------------------------------------------------------
-    def _wanted_reliability(self) -> ReliabilityPolicy:
-        mode = self.p("qos")
-        if mode == "reliable":
-            return ReliabilityPolicy.RELIABLE
-        if mode == "best_effort":
-            return ReliabilityPolicy.BEST_EFFORT
-        infos = self.get_publishers_info_by_topic(self.resolve_topic_name(self.topic))
-        if any(i.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for i in infos):
-            return ReliabilityPolicy.BEST_EFFORT  # a reliable subscriber would never connect
-        return ReliabilityPolicy.RELIABLE  # no loss of large frames (and the default before anyone publishes)
-
-    def _ensure_subscription(self) -> None:
-        want = self._wanted_reliability()
-        if self.sub is not None and want == self.sub_reliability:
-            return
-        if self.sub is not None:
-            self.destroy_subscription(self.sub)
-        qos = QoSProfile(depth=2, reliability=want, history=HistoryPolicy.KEEP_LAST)
-        msg_type = CompressedImage if self.p("transport") == "compressed" else Image
-        self.sub = self.create_subscription(msg_type, self.topic, self._on_image, qos,
-                                            callback_group=self._image_group)
-        self.sub_reliability = want
-        self.get_logger().info(f"subscribed to {self.resolve_topic_name(self.topic)} with "
-                               f"{'reliable' if want == ReliabilityPolicy.RELIABLE else 'best-effort'} QoS")
-
     def _on_image(self, msg: Any) -> None:
         """Executor callback: only hand the newest frame to the worker."""
         with self._pending_cv:
@@ -478,9 +454,10 @@ class CalibrationNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
+    from .node_mode import make_calibration_node
     from .spin import run_node
 
-    return run_node(CalibrationNode, (PascalCalibError,), "pascal_calib",
+    return run_node(lambda: make_calibration_node(CalibrationNode), (PascalCalibError,), "pascal_calib",
                     lambda: MultiThreadedExecutor(num_threads=6), args)
 
 

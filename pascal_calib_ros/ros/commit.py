@@ -1,4 +1,5 @@
-"""``~/commit``: the last good CameraInfo to the driver's ``sensor_msgs/SetCameraInfo`` service."""
+"""``~/commit``: the last good CameraInfo to the driver's ``sensor_msgs/SetCameraInfo`` service (stereo: each
+camera's to its own driver's service)."""
 
 from __future__ import annotations
 
@@ -33,3 +34,23 @@ def commit_camera_info(client: Any, info: CameraInfo | None, timeout_s: float = 
     if answer.success:
         return True, f"driver accepted the calibration: {answer.status_message}"
     return False, f"driver refused the calibration: {answer.status_message}"
+
+
+def commit_pair(clients: tuple[Any, Any], infos: tuple[CameraInfo, CameraInfo] | None,
+                timeout_s: float = 10.0) -> tuple[bool, str]:
+    """A stereo pair's commit: the left CameraInfo to the left driver's own service and the right's
+    to the right driver's (never one service for both: it would write both calibrations into one
+    camera's file). Both are sent even if the first fails; success only when both drivers accept;
+    the message gives both answers, each with its service."""
+    if infos is None:
+        return False, "no calibration to commit: call ~/calibrate first"
+    if clients[0].srv_name == clients[1].srv_name:
+        return False, (f"both cameras would commit to {clients[0].srv_name}: set left_set_camera_info_service and "
+                       "right_set_camera_info_service to each driver's own service")
+    answers = [commit_camera_info(cli, info, timeout_s) for cli, info in zip(clients, infos, strict=True)]
+    text = "; ".join(f"{side} ({cli.srv_name}): {msg}"
+                     for side, cli, (_, msg) in zip(("left", "right"), clients, answers, strict=True))
+    ok = all(a[0] for a in answers)
+    if not ok and any(a[0] for a in answers):
+        text += "; only one camera holds the new calibration: fix the other driver and commit again"
+    return ok, text

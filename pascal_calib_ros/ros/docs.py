@@ -1,5 +1,5 @@
 """The tables of ``docs/nodes.md`` generated from the nodes' own tables (:data:`.params.PARAMS`,
-:data:`.interfaces.CALIBRATION_NODE_INTERFACES`, ``replay_node.PARAMS``).
+:data:`.interfaces.CALIBRATION_NODE_INTERFACES` and ``STEREO_NODE_INTERFACES``, ``replay_node.PARAMS``).
 
 ``python -m pascal_calib_ros.ros.docs [--check] [docs/nodes.md]`` rewrites every block between
 ``<!-- generated: NAME -->`` and ``<!-- end generated -->``; with ``--check`` it only says whether the
@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from .interfaces import CALIBRATION_NODE_INTERFACES
+from .interfaces import CALIBRATION_NODE_INTERFACES, STEREO_NODE_INTERFACES, Interface
 from .params import PARAMS, READ_ONLY, Param
 
 PAGE = Path(__file__).resolve().parents[2] / "docs" / "nodes.md"
@@ -36,6 +36,8 @@ def _meaning(p: Param) -> str:
         extra.append(f"range {lo:g} to {hi:g}")
     if p.name in READ_ONLY:
         extra.append("read only")
+    if p.modes != ("mono", "stereo"):
+        extra.append(f"{p.modes[0]} only")
     return p.description + (f" ({'; '.join(extra)})" if extra else "")
 
 
@@ -45,10 +47,18 @@ def calibration_node_parameters() -> str:
     return "\n".join(rows) + "\n"
 
 
-def calibration_node_interfaces() -> str:
+def _interfaces(table: tuple[Interface, ...]) -> str:
     rows = ["| interface | type | what |", "|---|---|---|"]
-    rows += [f"| `{i.name}` ({i.kind}) | {i.type} | {i.description} |" for i in CALIBRATION_NODE_INTERFACES]
+    rows += [f"| `{i.name}` ({i.kind}) | {i.type} | {i.description} |" for i in table]
     return "\n".join(rows) + "\n"
+
+
+def calibration_node_interfaces() -> str:
+    return _interfaces(CALIBRATION_NODE_INTERFACES)
+
+
+def stereo_node_interfaces() -> str:
+    return _interfaces(STEREO_NODE_INTERFACES)
 
 
 def replay_node_parameters() -> str:
@@ -60,6 +70,7 @@ def replay_node_parameters() -> str:
 
 
 TABLES = {"calibration-node-interfaces": calibration_node_interfaces,
+          "calibration-node-stereo-interfaces": stereo_node_interfaces,
           "calibration-node-parameters": calibration_node_parameters,
           "replay-node-parameters": replay_node_parameters}
 

@@ -66,3 +66,48 @@ CALIBRATION_NODE_INTERFACES = (
               "+1.3 (+7.2 sigma)`, the views used, the projection shift (px, as `pascal-calib diff`) and how far X "
               'moved; the last answer in `~/status` (`verify`); see Export and verify'),
 )
+
+# ``mode:=stereo`` (ros/stereo_node.py)
+STEREO_NODE_INTERFACES = (
+    Interface('left/image', 'sub', 'sensor_msgs/Image',
+              "the left camera's images; remap to its driver, e.g. `-r left/image:=/stereo/left/image_raw`"),
+    Interface('right/image', 'sub', 'sensor_msgs/Image', "the right camera's images"),
+    Interface('left/image/compressed', 'sub', 'sensor_msgs/CompressedImage',
+              'with `transport:=compressed` (and `right/image/compressed`); each topic subscribed with the QoS its '
+              'own publisher needs (`qos:=auto`)'),
+    Interface('~/status', 'pub', 'diagnostic_msgs/DiagnosticArray',
+              '1 Hz and on every stored shot: shots stored and seen by both cameras, views per camera, coverage per '
+              'camera and axis, rejections (per shot and per camera), frames received / unpaired per camera, pairs '
+              'examined / dropped, the last pair\'s stamp difference, ready, last result; when frames arrive but '
+              'never pair the message (level ERROR) and `sync_note` say why: `frames arrive but never pair: 4 left '
+              'and 4 right frame(s) so far, their stamps differ by 0.500 s, more than sync_slop 0.02 s; ...`, or '
+              '`5 frame(s) arrived on /left/image so far but none on /right/image: ...`'),
+    Interface('~/examined_frames', 'pub', 'std_msgs/Header',
+              "the header of each frame the node is done with: both frames of an examined pair, and a frame "
+              "dropped because it cannot pair (reliable, transient local); `replay_node`'s lock-step waits for it"),
+    Interface('~/detections', 'pub', 'sensor_msgs/Image (bgr8)',
+              "both cameras' frames side by side, each as the mono node draws it: its detection and line (`left: "
+              "shot N stored (both cameras)`, `right: not used: <why>`, `ok; not stored: too similar ...`), the "
+              "footprints of its stored views and its coverage panel; only drawn while someone subscribes"),
+    Interface('~/left/camera_info', 'pub', 'sensor_msgs/CameraInfo',
+              "reliable + transient local; the left camera's K, D, R = its rectification rotation, P = its "
+              'rectified projection, as `left.yaml` (camera_calibration\'s stereo format)'),
+    Interface('~/right/camera_info', 'pub', 'sensor_msgs/CameraInfo',
+              "reliable + transient local; the right camera's, with `P[0,3] = -fx' * baseline` (image_geometry "
+              'reads the baseline as `-P[0,3] / P[0,0]`)'),
+    Interface('~/stereo_transform', 'pub', 'geometry_msgs/TransformStamped',
+              'reliable + transient local; the right optical frame in the left\'s (header `left_frame`, child '
+              '`right_frame`: p_left = R\' p_right + t\', the inverse of stereo.yaml\'s `X_right = R X_left + T`), '
+              'what a static transform publisher would send; published only by a successful `~/calibrate`'),
+    Interface('~/calibrate', 'srv', 'std_srvs/Trigger',
+              'calibrate the stored shots jointly (as `pascal-calib stereo`); answers `left: fx= fy= cx= cy= rms= '
+              'views=; right: ...; X_right = R X_left + T: T=[..] m (+- [..] mm), angle .. deg (+- [..] deg); '
+              'baseline .. m, epipolar RMS .. px; shots=N both/M; yaml=...`, or why not (too few shots both '
+              'cameras see and what keeps them away, a degenerate set, a rig transform not determined within 0.5 '
+              'deg / 5 mm, an epipolar RMS above 1 px); nothing is published or written then'),
+    Interface('~/reset', 'srv', 'std_srvs/Trigger', 'clear the shots (the last good result stays published)'),
+    Interface('~/commit', 'srv', 'std_srvs/Trigger',
+              "send the left CameraInfo to `left_set_camera_info_service` and the right one to "
+              "`right_set_camera_info_service` (each driver's own service) and report both answers; success only "
+              'when both accept'),
+)

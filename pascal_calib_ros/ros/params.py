@@ -25,26 +25,39 @@ class Param:
     choices: tuple[str, ...] = ()
     int_range: tuple[int, int] | None = None
     float_range: tuple[float, float] | None = None
+    modes: tuple[str, ...] = ("mono", "stereo")  # the node modes that declare it
+
+
+MONO = ("mono",)
+STEREO = ("stereo",)
 
 
 # The one declaration table of the node's parameters.
 PARAMS = (
+    Param('mode', 'mono',
+          '`mono`: one camera on `image`; `stereo`: a stereo pair on `left/image` and `right/image`, calibrated '
+          'jointly (both intrinsics and the rig transform; see Stereo mode)', choices=('mono', 'stereo')),
     Param('target', 'ring_a4',
           'target YAML path or packaged target name (ring_a4, pascal_board_a3, ...)',),
     Param('method', '',
           "`ring`, `pt2`, `pt1`, `huang`, `grid`, `zhang`; empty: the target's natural method (`grid` for grid "
           'targets)', choices=('', *METHODS)),
     Param('min_views', 8,
-          'views needed before calibrating (>= 3)', int_range=(3, 1000)),
+          'views needed before calibrating (>= 3); stereo: shots both cameras see', int_range=(3, 1000)),
     Param('max_views', 40,
-          'views kept at most (bounded memory)', int_range=(3, 1000)),
+          'views kept at most (bounded memory); stereo: shots', int_range=(3, 1000)),
     Param('camera_name', 'camera',
-          'camera_name written to the YAML and CameraInfo consumers',),
+          'camera_name written to the YAML and CameraInfo consumers; stereo: `NAME/left` and `NAME/right` (as '
+          "`camera_calibration`'s stereo files)",),
     Param('output_dir', '',
           'keep accepted frames (`frames/<view name>.png`), the YAML, `calibration.json` and, after each successful'
-          ' `~/calibrate`, the report (`report.pdf`, `report.png`, `report.json`, see Calibration report) here',),
+          ' `~/calibrate`, the report (`report.pdf`, `report.png`, `report.json`, see Calibration report) here; '
+          'stereo: `left/<shot>.png` and `right/<shot>.png` (the input of `pascal-calib stereo`), `left.yaml`, '
+          '`right.yaml`, `stereo.yaml`, `left.calibration.json`, `right.calibration.json` and `report/`; default '
+          '`~/.ros/camera_info/<camera_name>/` (the files only)',),
     Param('calibration_file', '',
-          'YAML path; default `<output_dir>/<camera_name>.yaml`, else `~/.ros/camera_info/<camera_name>.yaml`',),
+          'YAML path; default `<output_dir>/<camera_name>.yaml`, else `~/.ros/camera_info/<camera_name>.yaml`',
+          modes=MONO),
     Param('zero_skew', True,
           'estimate K with zero skew',),
     Param('distortion_model', 'plumb_bob',
@@ -53,10 +66,11 @@ PARAMS = (
           'bends away from ellipses', choices=tuple(DISTORTION_MODELS)),
     Param('target_shape', '',
           "also estimate the printed sheet's shape (grid and checkerboard targets): warp (out-of-plane bend), pitch"
-          ' (y/x scale ratio), all; empty: nominal flat sheet', choices=tuple(SHAPE_CHOICES)),
+          ' (y/x scale ratio), all; empty: nominal flat sheet', choices=tuple(SHAPE_CHOICES), modes=MONO),
     Param('cross_validate', False,
           '`~/calibrate` also calibrates two interleaved halves of the views and compares them against their '
-          'projection uncertainty (see Cross-validation); needs 2 × `min_views` views; not with `hand_eye`',),
+          'projection uncertainty (see Cross-validation); needs 2 × `min_views` views; not with `hand_eye`',
+          modes=MONO),
     Param('gamma', 1.0,
           'linearise intensities with this display gamma before locating edges: 1 for a linear sensor (most '
           "machine-vision drivers' default), about 2.2 for sRGB webcams; matters for thin features (ring grids, see"
@@ -65,19 +79,21 @@ PARAMS = (
           'calibrate as soon as the node is ready (and again as views are added)',),
     Param('qos', 'auto',
           '`auto` matches the publisher: reliable for reliable drivers (large frames are not lost), best-effort as '
-          'soon as a best-effort publisher is seen (re-checked every second); or force `reliable` / `best_effort`',
+          'soon as a best-effort publisher is seen (re-checked every second; stereo: per topic); or force '
+          '`reliable` / `best_effort`',
           choices=('auto', 'reliable', 'best_effort')),
     Param('transport', 'raw',
-          "raw (sensor_msgs/Image on 'image') | compressed ('image/compressed')", choices=('raw', 'compressed')),
+          "raw (sensor_msgs/Image on 'image'; stereo: 'left/image', 'right/image') | compressed ('image/compressed'; "
+          "stereo: 'left/image/compressed', 'right/image/compressed')", choices=('raw', 'compressed')),
     Param('set_camera_info_service', 'camera/set_camera_info',
-          "driver's sensor_msgs/SetCameraInfo service",),
+          "driver's sensor_msgs/SetCameraInfo service", modes=MONO),
     Param('min_view_distance', 0.08,
           'diversity threshold between stored views (L1 in x, y, size, skew)', float_range=(0.0, 2.0)),
     Param('collect', 'auto',
           '`auto`: store frames that add diversity; `on_capture`: only `~/capture` stores views (robot-arm '
-          'sessions)', choices=('auto', 'on_capture')),
+          'sessions)', choices=('auto', 'on_capture'), modes=MONO),
     Param('capture_timeout', 5.0,
-          '~/capture waits this many seconds for a still frame', float_range=(0.1, 600.0)),
+          '~/capture waits this many seconds for a still frame', float_range=(0.1, 600.0), modes=MONO),
     Param('max_motion_px', -1.0,
           "a frame is used only if the target's features (circle centres and semi-axes, corners) moved less than "
           'this since the previous examined frame and, with robot poses, the robot did not move (more than 0.1 mm /'
@@ -86,17 +102,18 @@ PARAMS = (
           "folder's frames are different views); moving frames are counted as `rejected: moving`",
           float_range=(-1.0, 1000.0)),
     Param('robot_pose_topic', '',
-          'geometry_msgs/PoseStamped or TransformStamped of the tool in the robot base (empty: no robot poses)',),
+          'geometry_msgs/PoseStamped or TransformStamped of the tool in the robot base (empty: no robot poses)',
+          modes=MONO),
     Param('pose_max_age', 0.1,
           "a view's pose is interpolated (rotation slerp, translation lerp) from the samples around its image stamp"
           ' if both are within this many seconds, else the nearest sample within it; otherwise the view is refused '
-          'with "no robot pose"', float_range=(0.001, 10.0)),
+          'with "no robot pose"', float_range=(0.001, 10.0), modes=MONO),
     Param('robot_base_frame', 'base_link',
-          'the robot base frame (robot poses must be in it)',),
+          'the robot base frame (robot poses must be in it)', modes=MONO),
     Param('robot_tool_frame', 'tool0',
-          'the robot tool (flange) frame the poses describe',),
+          'the robot tool (flange) frame the poses describe', modes=MONO),
     Param('camera_frame', 'camera_optical_frame',
-          'child frame of the published hand-eye transform',),
+          'child frame of the published hand-eye transform', modes=MONO),
     Param('hand_eye', '',
           '`eye_in_hand` / `eye_to_hand`: `~/calibrate` also solves hand-eye (needs `robot_pose_topic`), publishes '
           '`~/hand_eye` and CameraInfo, writes `hand_eye.yaml` beside the camera YAML '
@@ -104,16 +121,41 @@ PARAMS = (
           '<camera> t=[..] m std=[..] mm (arm accuracy share [..] mm) q=[..] rot_std=[..] deg views_used=N/M rms= '
           'robot_error= yaml=; camera: ...`. Nothing is published if it fails: fewer than 3 views with a pose, '
           'degenerate motions, a solver error, a non-finite result, or σ above 5 mm / 0.5°',
-          choices=('', 'eye_in_hand', 'eye_to_hand')),
+          choices=('', 'eye_in_hand', 'eye_to_hand'), modes=MONO),
     Param('arm_accuracy_mm', 0.2,
           "the arm's systematic position error (absolute accuracy over the session's workspace, per axis) that no "
-          'session can measure: its share is added to the hand-eye std; 0: left out', float_range=(0.0, 100.0)),
+          'session can measure: its share is added to the hand-eye std; 0: left out', float_range=(0.0, 100.0),
+          modes=MONO),
     Param('arm_accuracy_length', 0.3,
-          'metres over which that error changes (its correlation length)', float_range=(0.01, 100.0)),
+          'metres over which that error changes (its correlation length)', float_range=(0.01, 100.0),
+          modes=MONO),
+    Param('sync_slop', 0.02,
+          'stereo: a left and a right frame form a shot when their header stamps differ by at most this many '
+          'seconds (approximate time, as message_filters; 0: equal stamps, hardware-triggered cameras). Frames '
+          'that arrive but never pair are counted and `~/status` says why (e.g. their stamps differ by 0.5 s)',
+          float_range=(0.0, 10.0), modes=STEREO),
+    Param('left_set_camera_info_service', 'left/set_camera_info',
+          "stereo: the left driver's own sensor_msgs/SetCameraInfo service (`~/commit`)", modes=STEREO),
+    Param('right_set_camera_info_service', 'right/set_camera_info',
+          "stereo: the right driver's own sensor_msgs/SetCameraInfo service (`~/commit`); must differ from the "
+          "left's (one service would write both calibrations into one camera's file)", modes=STEREO),
+    Param('left_frame', 'left_camera_optical_frame',
+          'stereo: the left optical frame, parent of `~/stereo_transform`', modes=STEREO),
+    Param('right_frame', 'right_camera_optical_frame',
+          'stereo: the right optical frame, child of `~/stereo_transform`', modes=STEREO),
+    Param('alpha', 0.0,
+          "stereo: rectification's free scaling (OpenCV `stereoRectify`): 0 only valid pixels (camera_calibration's "
+          'default) .. 1 every source pixel; sets R and P of both CameraInfos', float_range=(0.0, 1.0), modes=STEREO),
 )
 
 
-READ_ONLY = {"transport", "robot_pose_topic"}
+READ_ONLY = {"mode", "transport", "robot_pose_topic", "left_set_camera_info_service", "right_set_camera_info_service"}
+
+
+def params_for(mode: str) -> tuple[Param, ...]:
+    """The parameters a node in ``mode`` declares (an unknown mode: the mono node's, which then refuses it)."""
+    mode = mode if mode in ("mono", "stereo") else "mono"
+    return tuple(p for p in PARAMS if mode in p.modes)
 
 
 def validate_parameters(changes: dict[str, Any], current: dict[str, Any]) -> list[str]:
@@ -145,15 +187,36 @@ def validate_parameters(changes: dict[str, Any], current: dict[str, Any]) -> lis
     motion = changes.get("max_motion_px")
     if motion is not None and float(motion) < 0 and float(motion) != -1.0:
         problems.append(f"max_motion_px={motion}: 0 (off), -1 (auto) or a positive threshold in px")
+    return problems + _stereo_problems(changes, values)
+
+
+def _stereo_problems(changes: dict[str, Any], values: dict[str, Any]) -> list[str]:
+    """The stereo mode's own checks: a negative slop, one set_camera_info service or one optical
+    frame for both cameras."""
+    problems = []
+    slop = changes.get("sync_slop")
+    if slop is not None and float(slop) < 0:
+        problems.append(f"sync_slop={slop}: the largest stamp difference of a pair in seconds, 0 or more "
+                        "(0: equal stamps)")
+    left, right = values.get("left_set_camera_info_service"), values.get("right_set_camera_info_service")
+    if left is not None and left == right:
+        problems.append(f"left_set_camera_info_service and right_set_camera_info_service are both {left!r}: each "
+                        "camera's driver has its own service (one service would write both calibrations into one "
+                        "camera's file)")
+    if values.get("left_frame") is not None and values.get("left_frame") == values.get("right_frame"):
+        problems.append(f"left_frame and right_frame are both {values['left_frame']!r}: the two optical frames "
+                        "differ")
     return problems
 
 
-def declare_parameters(node: Any) -> None:
-    """Declare every parameter of :data:`PARAMS` on ``node`` with its description, choices and range
-    (what ``ros2 param describe`` shows)."""
+def declare_parameters(node: Any, mode: str = "mono") -> None:
+    """Declare the parameters of ``mode`` (:func:`params_for`) on ``node`` with their description,
+    choices and range (what ``ros2 param describe`` shows); a value outside its range is a
+    :class:`ParameterError` naming the parameter and the range."""
     from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+    from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 
-    for p in PARAMS:
+    for p in params_for(mode):
         desc = ParameterDescriptor(description=p.description + (f" ({', '.join(p.choices)})" if p.choices else ""),
                                    read_only=p.name in READ_ONLY)
         if p.int_range:
@@ -161,4 +224,12 @@ def declare_parameters(node: Any) -> None:
         if p.float_range:
             desc.floating_point_range = [FloatingPointRange(from_value=p.float_range[0], to_value=p.float_range[1],
                                                             step=0.0)]
-        node.declare_parameter(p.name, p.default, desc)
+        try:
+            node.declare_parameter(p.name, p.default, desc)
+        except InvalidParameterValueException as e:
+            lo, hi = p.int_range or p.float_range or (None, None)
+            raise ParameterError(f"invalid parameter {p.name}: {e}" + (f" (range {lo:g} to {hi:g})"
+                                                                       if lo is not None else "")) from None
+        except InvalidParameterTypeException as e:
+            hint = " (a floating-point number: write 1.0, not 1)" if isinstance(p.default, float) else ""
+            raise ParameterError(f"invalid parameter {p.name}: {e}{hint}") from None

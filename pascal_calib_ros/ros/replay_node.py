@@ -49,6 +49,7 @@ from ..errors import PascalCalibError
 from ..io.bags import COMPRESSED_TYPE, POSE_TYPE, BagError, BagImage, BagPose, pose_topics, read_session
 from ..io.image_msgs import grey_to_image_fields
 from ..io.images import IMAGE_SUFFIXES, ImageReadError, read_grey
+from .stereo_replay import STEREO_PARAMS, StereoReplayError, StereoSource, replay_stereo, requested, stereo_publishers
 
 PARAMS: tuple[tuple[str, Any, str], ...] = (
     ("source", "", "folder, glob of image files, or rosbag2 bag folder/file"),
@@ -73,6 +74,7 @@ PARAMS: tuple[tuple[str, Any, str], ...] = (
     ("exit_when_done", False, "shut down after the last message (ignored with loop)"),
     ("qos", "reliable", "reliable | best_effort"),
     ("transport", "raw", "folders: raw (decode to Image) | compressed (file bytes as CompressedImage)"),
+    *STEREO_PARAMS,
 )
 
 
@@ -85,9 +87,19 @@ class ReplayNode(Node):
         super().__init__("image_replay", **kwargs)
         self._declare()
         self.mode = str(self.p("mode"))
-        compressed, what = self._open_source()
-        what += self._pose_publisher()
-        self.pub = self._image_publisher(compressed)
+        self.stereo: StereoSource | None = None
+        self.pubs: tuple[Any, ...]
+        self.pub_pose: Any = None
+        if requested(self.p):  # two cameras (stereo_replay.py)
+            self.stereo = StereoSource(self.p, self._bag_path() if self.source else None)
+            compressed, what = any(self.stereo.compressed), self.stereo.what
+            self.pose_topic, self.poses_published = "", 0
+            self.pubs = stereo_publishers(self, self.stereo, output_topic)
+        else:
+            compressed, what = self._open_source()
+            what += self._pose_publisher()
+            self.pubs = (self._image_publisher(compressed),)
+        self.pub = self.pubs[0]
         self.published = 0
         self.acknowledged = 0
         self.failed = False  # lock-step gave up: main() exits with 1
@@ -106,7 +118,8 @@ class ReplayNode(Node):
             rate = float(self.p("rate"))
             how = f"timed: {rate:g} Hz" if rate > 0 else "timed: recorded timing"
         kind = "sensor_msgs/CompressedImage" if compressed else "sensor_msgs/Image"
-        self.get_logger().info(f"replaying {what} as {kind} on {self.pub.topic_name} ({self.p('qos')}); {how}")
+        self.topics = ", ".join(p.topic_name for p in self.pubs)
+        self.get_logger().info(f"replaying {what} as {kind} on {self.topics} ({self.p('qos')}); {how}")
         if self.mode == "lockstep" and self.p("qos") == "best_effort":
             self.get_logger().warn("lock-step over best-effort QoS: a lost frame stops the replay after "
                                    "ack_timeout; use qos:=reliable")
@@ -117,14 +130,15 @@ class ReplayNode(Node):
         """Declare the parameters (read only) and refuse values that cannot work."""
         for name, default, desc in PARAMS:
             d = ParameterDescriptor(description=desc, read_only=True)
-            if name in ("rate", "start_delay", "pose_lead"):
+            if name in ("rate", "start_delay", "pose_lead", "sync_slop"):
                 d.floating_point_range = [FloatingPointRange(from_value=0.0, to_value=1000.0, step=0.0)]
             if name == "ack_timeout":
                 d.floating_point_range = [FloatingPointRange(from_value=0.1, to_value=3600.0, step=0.0)]
             self.declare_parameter(name, default, d)
         self.source = str(self.p("source"))
-        if not self.source:
-            raise ReplayError("parameter 'source' is empty: give a folder, a glob or a bag")
+        if not self.source and not (self.p("left_source") or self.p("right_source")):
+            raise ReplayError("parameter 'source' is empty: give a folder, a glob or a bag (stereo: left_source and "
+                              "right_source)")
         if self.p("qos") not in ("reliable", "best_effort"):
             raise ReplayError(f"qos must be reliable or best_effort, got {self.p('qos')!r}")
         if self.p("transport") not in ("raw", "compressed"):
@@ -150,7 +164,6 @@ class ReplayNode(Node):
     def _pose_publisher(self) -> str:
         """The robot pose publisher of a bag with ``pose_topic``; what it adds to the log line."""
         self.pose_topic = str(self.p("pose_topic"))
-        self.pub_pose: Any = None
         self.poses_published = 0
         if not self.pose_topic:
             return ""
@@ -216,7 +229,7 @@ class ReplayNode(Node):
         want = int(self.p("wait_for_subscribers"))
         deadline = time.monotonic() + 30.0
         while want > 0 and time.monotonic() < deadline and not self.done.is_set():
-            if self.pub.get_subscription_count() >= want and (
+            if min(p.get_subscription_count() for p in self.pubs) >= want and (
                     self.pub_pose is None or self.pub_pose.get_subscription_count() > 0):
                 # the publisher sees the subscriber before the subscriber has matched the
                 # publisher; messages sent in between can be lost: let discovery settle
@@ -237,7 +250,7 @@ class ReplayNode(Node):
         t0 = time.monotonic()
         next_log = t0 + 5.0
         while not self.done.is_set():
-            if self.pub.get_subscription_count() > 0 and self.sub_ack.get_publisher_count() > 0 and (
+            if min(p.get_subscription_count() for p in self.pubs) > 0 and self.sub_ack.get_publisher_count() > 0 and (
                     self.pub_pose is None or self.pub_pose.get_subscription_count() > 0):
                 time.sleep(0.5)
                 return
@@ -245,28 +258,34 @@ class ReplayNode(Node):
             if now - t0 > timeout:
                 raise ReplayError(
                     f"lock-step: no calibration node within {timeout:g} s (subscribers of "
-                    f"{self.pub.topic_name}: {self.pub.get_subscription_count()}, publishers of "
+                    + ", ".join(f"{p.topic_name}: {p.get_subscription_count()}" for p in self.pubs) + ", publishers of "
                     f"{self.ack_topic}: {self.sub_ack.get_publisher_count()}"
                     + (f", subscribers of {self.pose_topic}: {self.pub_pose.get_subscription_count()}"
                        if self.pub_pose is not None else "") + "); start calibration_node, "
                     "remap topic / ack_topic to it, or use mode:=timed to publish without acknowledgements")
             if now >= next_log:
                 next_log = now + 5.0
-                self.get_logger().info(f"lock-step: waiting for a subscriber of {self.pub.topic_name} and a "
+                self.get_logger().info(f"lock-step: waiting for a subscriber of {self.topics} and a "
                                        f"publisher of {self.ack_topic}")
             time.sleep(0.05)
 
     def _publish(self, msg: Any, name: str) -> None:
         """Publish one frame; in lock-step, return once the calibration node has examined it."""
-        self.pub.publish(msg)
-        self.published += 1
+        self._publish_group([(self.pub, msg)], name)
+
+    def _publish_group(self, items: list[tuple[Any, Any]], name: str) -> None:
+        """Publish frames that go together (a stereo shot: (publisher, message) per camera); in
+        lock-step, return once the calibration node has acknowledged every one of them."""
+        for pub, msg in items:
+            pub.publish(msg)
+        self.published += len(items)
         if self.mode != "lockstep":
             return
-        key = (msg.header.stamp.sec, msg.header.stamp.nanosec, msg.header.frame_id)
+        keys = {(m.header.stamp.sec, m.header.stamp.nanosec, m.header.frame_id) for _, m in items}
         timeout = float(self.p("ack_timeout"))
         deadline = time.monotonic() + timeout
         with self._ack_cv:
-            while key not in self._acks:
+            while not keys <= set(self._acks):
                 left = deadline - time.monotonic()
                 if self.done.is_set():
                     return
@@ -277,7 +296,7 @@ class ReplayNode(Node):
                         "calibration node stopped, listens elsewhere, or the frame was lost; stopping the "
                         "replay (raise ack_timeout for a slow node, or use mode:=timed)")
                 self._ack_cv.wait(min(left, 0.2))
-        self.acknowledged += 1
+        self.acknowledged += len(items)
 
     def _run(self) -> None:
         try:
@@ -286,7 +305,9 @@ class ReplayNode(Node):
             if self.mode == "lockstep":
                 self._wait_for_calibration_node()
             while not self.done.is_set():
-                if self.is_bag:
+                if self.stereo is not None:
+                    replay_stereo(self)
+                elif self.is_bag:
                     self._replay_bag()
                 else:
                     self._replay_files()
@@ -294,9 +315,10 @@ class ReplayNode(Node):
                     break
             acked = f", {self.acknowledged} examined by the calibration node" if self.mode == "lockstep" else ""
             poses = f", {self.poses_published} pose(s) on {self.pose_topic}" if self.pose_topic else ""
-            self.get_logger().info(f"replay finished: {self.published} message(s) on {self.pub.topic_name}{acked}"
-                                   f"{poses}")
-        except (BagError, ReplayError) as e:
+            if self.stereo is not None and self.stereo.skipped:
+                poses += f"; {self.stereo.skipped} frame(s) without a partner skipped"
+            self.get_logger().info(f"replay finished: {self.published} message(s) on {self.topics}{acked}{poses}")
+        except (BagError, ReplayError, StereoReplayError) as e:
             self.failed = True
             self.get_logger().error(str(e))
         finally:

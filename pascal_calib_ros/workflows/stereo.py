@@ -164,7 +164,22 @@ class StereoOutcome:
         """The left and right CameraInfo contents (K, D, R = R1 / R2, P = P1 / P2), as written to
         left.yaml and right.yaml: what a node publishes on left/camera_info and right/camera_info."""
         return pair_camera_infos(self.rig.cameras[0].camera(), self.rig.cameras[1].camera(), self.rectification,
-                                 self.stereo.left_name.rsplit("/", 1)[0])
+                                 self.camera_name)
+
+    @property
+    def camera_name(self) -> str:
+        """The pair's name (``left.yaml`` holds ``NAME/left``)."""
+        return self.stereo.left_name.rsplit("/", 1)[0]
+
+    def write(self, out_dir: str | Path) -> list[Path]:
+        """``left.yaml``, ``right.yaml`` and ``stereo.yaml`` (:mod:`..io.stereo_yaml`) and each camera's
+        record (``left.calibration.json``, ``right.calibration.json``: :func:`write_rig_records`) in
+        ``out_dir``."""
+        left, right = self.rig.cameras[0].camera(), self.rig.cameras[1].camera()
+        out = Path(out_dir)
+        return [*write_pair_yamls(out, left, right, self.rectification, self.camera_name),
+                write_stereo_yaml(out / "stereo.yaml", self.stereo),
+                *write_rig_records(self.rig, out, [f"{self.camera_name}/{n}" for n in ("left", "right")])]
 
 
 def _shot_lines(rig: RigResult) -> list[str]:
@@ -186,6 +201,13 @@ def stereo_from_detections(dets: list[list[Detection]], target: Target, options:
     if len(dets) != 2:
         raise PairingError(f"a stereo pair has two cameras, got {len(dets)}")
     rig = calibrate_rig(dets, target, ["left", "right"], options.rig, [d.name for d in dets[0]])
+    return stereo_outcome(rig, dets, target, options, out_dir)
+
+
+def stereo_outcome(rig: RigResult, dets: list[list[Detection]], target: Target, options: StereoOptions,
+                   out_dir: str | Path | None = None) -> StereoOutcome:
+    """A calibrated pair's rectification, epipolar RMS, stereo.yaml data, lines and (with
+    ``out_dir``) files (:func:`stereo_from_detections` after the calibration)."""
     left, right = rig.cameras[0].camera(), rig.cameras[1].camera()
     E = rig.extrinsics[1]
     rect = rectify_pair(left, right, E.R, E.translation, options.alpha)
@@ -196,11 +218,8 @@ def stereo_from_detections(dets: list[list[Detection]], target: Target, options:
                     height=left.height, rig=E, sigma_rotation_deg=sig_r, sigma_translation_mm=sig_t,
                     pose_sigma_rotation_deg=pose_r, pose_sigma_translation_mm=pose_t, epipolar_rms_px=epi,
                     rectification=rect)
-    files: list[Path] = []
-    if out_dir is not None:
-        files = [*write_pair_yamls(Path(out_dir), left, right, rect, options.camera_name),
-                 write_stereo_yaml(Path(out_dir) / "stereo.yaml", sd),
-                 *write_rig_records(rig, Path(out_dir), [f"{options.camera_name}/{n}" for n in ("left", "right")])]
+    outcome = StereoOutcome(rig, rect, epi, sd, [], [])
+    files = outcome.write(out_dir) if out_dir is not None else []
     sr, st = rig.extrinsic_sigma[1]
     lines = ["shots:", *_shot_lines(rig), *rig.summary_lines(),
              f"X_right = R X_left + T: T = [{', '.join(f'{v:.6f}' for v in E.translation)}] m "
@@ -211,7 +230,8 @@ def stereo_from_detections(dets: list[list[Detection]], target: Target, options:
     if files:
         lines.append("wrote " + ", ".join(str(f) for f in files))
     lines += ["publish the right optical frame with:", "  " + sd.static_transform()]
-    return StereoOutcome(rig, rect, epi, sd, files, lines)
+    outcome.files, outcome.lines = files, lines
+    return outcome
 
 
 def write_rig_records(rig: RigResult, out: Path, camera_names: list[str]) -> list[Path]:

@@ -7,7 +7,7 @@ import pytest
 from ros_harness import NodeProcess, RosClient, next_domain_id, require_netns
 
 from pascal_calib_ros.ros.docs import PAGE, TABLES, render
-from pascal_calib_ros.ros.interfaces import CALIBRATION_NODE_INTERFACES
+from pascal_calib_ros.ros.interfaces import CALIBRATION_NODE_INTERFACES, STEREO_NODE_INTERFACES
 from pascal_calib_ros.ros.params import PARAMS
 
 
@@ -25,13 +25,11 @@ def test_a_stale_page_is_detected() -> None:
     assert render(stale) != stale and render(stale) == text
 
 
-@pytest.mark.ros
-@require_netns
-def test_the_interface_table_is_the_running_nodes(tmp_path) -> None:
-    """Every topic and service of the table (with the options that make it exist) on a running
-    node, and nothing the table does not list."""
+def _running_interfaces(params: dict, tmp_path) -> set[str]:
+    """The topics and services of a running calibration node started with ``params`` (parameter
+    services left out)."""
     domain = next_domain_id()
-    node = NodeProcess("calibration_node", {"robot_pose_topic": "/tool_pose"}, domain, tmp_path / "node.log")
+    node = NodeProcess("calibration_node", params, domain, tmp_path / "node.log")
     client = RosClient(domain)
     try:
         def names() -> set[str]:
@@ -45,14 +43,33 @@ def test_the_interface_table_is_the_running_nodes(tmp_path) -> None:
 
         assert client.spin_until(lambda: "/pascal_calib/calibrate" in names(), 30.0), node.log()
         client.spin_until(lambda: False, 1.0)
-        seen = {n for n in names() if not n.startswith(("/parameter_events", "/rosout", "/pascal_calib/describe",
+        return {n for n in names() if not n.startswith(("/parameter_events", "/rosout", "/pascal_calib/describe",
                                                           "/pascal_calib/get_", "/pascal_calib/list_",
                                                           "/pascal_calib/set_", "/pascal_calib/get_type"))}
-        table = {("/pascal_calib/" + i.name[2:]) if i.name.startswith("~/") else "/" + i.name
-                 for i in CALIBRATION_NODE_INTERFACES}
-        table = {t.replace("/robot_pose_topic", "/tool_pose") for t in table} - {"/image/compressed"}
-        # robot poses are subscribed once a publisher shows their type; the driver's set_camera_info is a client
-        assert seen == table - {"/tool_pose"}, (sorted(seen), sorted(table))
     finally:
         client.close()
         node.stop()
+
+
+def _table(interfaces) -> set[str]:
+    return {("/pascal_calib/" + i.name[2:]) if i.name.startswith("~/") else "/" + i.name for i in interfaces}
+
+
+@pytest.mark.ros
+@require_netns
+def test_the_interface_table_is_the_running_nodes(tmp_path) -> None:
+    """Every topic and service of the table (with the options that make it exist) on a running
+    node, and nothing the table does not list."""
+    seen = _running_interfaces({"robot_pose_topic": "/tool_pose"}, tmp_path)
+    table = {t.replace("/robot_pose_topic", "/tool_pose") for t in _table(CALIBRATION_NODE_INTERFACES)}
+    table -= {"/image/compressed"}
+    # robot poses are subscribed once a publisher shows their type; the driver's set_camera_info is a client
+    assert seen == table - {"/tool_pose"}, (sorted(seen), sorted(table))
+
+
+@pytest.mark.ros
+@require_netns
+def test_the_stereo_interface_table_is_the_running_stereo_nodes(tmp_path) -> None:
+    seen = _running_interfaces({"mode": "stereo"}, tmp_path)
+    table = _table(STEREO_NODE_INTERFACES) - {"/left/image/compressed"}
+    assert seen == table, (sorted(seen), sorted(table))

@@ -1,0 +1,376 @@
+"""The calibration node's stereo mode (``calibration_node --ros-args -p mode:=stereo``), node name
+``pascal_calib``.
+
+Subscribes ``left/image`` and ``right/image`` (or ``left/image/compressed`` and
+``right/image/compressed`` with ``transport:=compressed``), each with the QoS its publisher needs
+(:mod:`.image_subscription`), pairs the frames by header stamp within ``sync_slop`` seconds
+(:mod:`..session.frame_pairing`; frames that never pair are counted and ``~/status`` says why),
+detects the target in both frames of the newest pair in a worker thread (older pairs are dropped
+and counted, as the mono node drops frames), and hands the detections to the stereo session
+(:mod:`..session.stereo_live`). Every frame the node is done with (examined in a pair, or dropped
+because it cannot pair) is acknowledged on ``~/examined_frames`` for ``replay_node``'s lock-step.
+
+``~/calibrate`` runs the CLI's stereo workflow on the stored shots (:mod:`..workflows.
+stereo_session`) in a service thread, and only a checked result is published: ``~/left/
+camera_info`` and ``~/right/camera_info`` (K, D, R = the rectification rotation, P = the
+rectified projection, the right camera's ``P[0,3] = -fx' * baseline``; reliable, transient
+local) and ``~/stereo_transform`` (geometry_msgs/TransformStamped, latched: the right optical
+frame's pose in the left's, header ``left_frame``, child ``right_frame``; it carries
+``X_left = R' X_right + t'``, the inverse of stereo.yaml's ``X_right = R X_left + T``), and
+written (left.yaml, right.yaml, stereo.yaml, the calibration records). ``~/commit`` sends each
+camera's CameraInfo to its own driver's ``set_camera_info`` service and reports both answers.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import cv2
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import TransformStamped
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image
+from sensor_msgs.srv import SetCameraInfo
+from std_msgs.msg import Header
+from std_srvs.srv import Trigger
+
+from ..calibrate.options import CalibrationOptions
+from ..calibrate.result import CalibrationError
+from ..detect.target_detector import detect_target
+from ..errors import PascalCalibError
+from ..io.image_msgs import ImageConversionError, compressed_to_grey, image_to_grey
+from ..session.frame_pairing import SIDES, ApproximatePairer, Dropped
+from ..session.live import max_motion_of
+from ..session.stereo_live import StereoSession
+from ..targets import Target, resolve_target
+from ..workflows.detection import detection_params
+from ..workflows.stereo import StereoOutcome
+from ..workflows.stereo_session import (
+    StereoSessionOptions,
+    answer_line,
+    calibrate_session,
+    stereo_output_dir,
+    write_session_report,
+)
+from .commit import commit_pair
+from .conversions import camera_info_msg, image_msg, transform_msg
+from .image_subscription import MatchedImageSubscription
+from .params import ParameterError, declare_parameters, params_for, validate_parameters
+from .stereo_status import stereo_status_message
+
+LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL,
+                     history=HistoryPolicy.KEEP_LAST)
+
+
+def _stamp_ns(msg: Any) -> int:
+    return int(msg.header.stamp.sec) * 10**9 + int(msg.header.stamp.nanosec)
+
+
+class StereoCalibrationNode(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("pascal_calib", **kwargs)
+        declare_parameters(self, "stereo")
+        problems = validate_parameters(self.values(), {})
+        if problems:
+            raise ParameterError("invalid parameters: " + "; ".join(problems))
+        self.target: Target = resolve_target(self.p("target"))
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.session = StereoSession(self.p("min_views"), self.p("max_views"), self.p("min_view_distance"),
+                                     max_motion_of(float(self.p("max_motion_px")), "auto", False))
+        self.pairer = ApproximatePairer(float(self.p("sync_slop")))
+        self.outcome: StereoOutcome | None = None
+        self.info_msgs: tuple[CameraInfo, CameraInfo] | None = None
+        self.result_line = self.last_error = self.report_note = ""
+        self.frame_ids = ["", ""]
+        self.frames_bad = [0, 0]
+        self.pairs_examined = self.pairs_dropped = 0
+        self._session_start = 0  # pairs dropped before the last ~/reset
+        self.calibrating = threading.Lock()
+        self.auto_done_at = -1
+        self._pending: Any = None
+        self._pending_cv = threading.Condition()
+        self._stop = threading.Event()
+        self._worker = threading.Thread(target=self._work, name="detector", daemon=True)
+        self._create_interfaces()
+        self._worker.start()
+        topics = ", ".join(f"{s.resolved} ({s.qos_name})" for s in self.subs)
+        self.get_logger().info(
+            f"stereo: target {self.target.name}, listening on {topics}, pairing stamps within sync_slop "
+            f"{float(self.p('sync_slop')):g} s; call {self.resolve_service_name('~/calibrate')} when the status "
+            "says ready")
+
+    def _create_interfaces(self) -> None:
+        """Publishers, services, the driver clients and the two image subscriptions (docs/nodes.md)."""
+        self.pub_info = (self.create_publisher(CameraInfo, "~/left/camera_info", LATCHED),
+                         self.create_publisher(CameraInfo, "~/right/camera_info", LATCHED))
+        self.pub_transform = self.create_publisher(TransformStamped, "~/stereo_transform", LATCHED)
+        self.pub_status = self.create_publisher(DiagnosticArray, "~/status", 10)
+        self.pub_det = self.create_publisher(Image, "~/detections", 2)
+        examined_qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
+                                  durability=DurabilityPolicy.TRANSIENT_LOCAL, history=HistoryPolicy.KEEP_LAST)
+        self.pub_examined = self.create_publisher(Header, "~/examined_frames", examined_qos)
+        services = ReentrantCallbackGroup()
+        self.create_service(Trigger, "~/calibrate", self._srv_calibrate, callback_group=services)
+        self.create_service(Trigger, "~/reset", self._srv_reset, callback_group=services)
+        self.create_service(Trigger, "~/commit", self._srv_commit, callback_group=services)
+        self.set_info_clients = (
+            self.create_client(SetCameraInfo, self.p("left_set_camera_info_service"), callback_group=services),
+            self.create_client(SetCameraInfo, self.p("right_set_camera_info_service"), callback_group=services))
+        if self.set_info_clients[0].srv_name == self.set_info_clients[1].srv_name:
+            raise ParameterError(f"left_set_camera_info_service and right_set_camera_info_service both resolve to "
+                                 f"{self.set_info_clients[0].srv_name}: each camera's driver has its own service")
+        compressed = self.p("transport") == "compressed"
+        group = MutuallyExclusiveCallbackGroup()  # one pairer: the two image callbacks never run at once
+        self.subs = tuple(MatchedImageSubscription(
+            self, f"{side}/image/compressed" if compressed else f"{side}/image",
+            CompressedImage if compressed else Image, partial(self._on_image, c),
+            lambda: str(self.p("qos")), group) for c, side in enumerate(SIDES))
+        self.create_timer(1.0, self._ensure_subscriptions, callback_group=MutuallyExclusiveCallbackGroup())
+        self.create_timer(1.0, self.publish_status, callback_group=MutuallyExclusiveCallbackGroup())
+
+    # -- parameters ------------------------------------------------------------------
+    def p(self, name: str) -> Any:
+        return self.get_parameter(name).value
+
+    def values(self) -> dict[str, Any]:
+        return {p.name: self.p(p.name) for p in params_for("stereo")}
+
+    @property
+    def method(self) -> str:
+        return str(self.p("method") or self.target.default_method())
+
+    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        changes = {p.name: p.value for p in params}
+        problems = validate_parameters(changes, self.values())
+        if problems:
+            return SetParametersResult(successful=False, reason="; ".join(problems))
+        if "target" in changes:
+            self.target = resolve_target(str(changes["target"]))
+            self.session.clear()
+        if "sync_slop" in changes:
+            with self._pending_cv:
+                self.pairer.set_slop(float(changes["sync_slop"]))
+        motion = None
+        if "max_motion_px" in changes:
+            motion = max_motion_of(float(changes["max_motion_px"]), "auto", False)
+        self.session.set_limits(changes.get("min_views"), changes.get("max_views"), changes.get("min_view_distance"),
+                                motion)
+        return SetParametersResult(successful=True)
+
+    # -- image input ------------------------------------------------------------------
+    def _ensure_subscriptions(self) -> None:
+        for s in self.subs:
+            s.ensure()
+
+    def _on_image(self, side: int, msg: Any) -> None:
+        """Executor callback: pair by stamp; only the newest pair waits for the detector."""
+        with self._pending_cv:
+            pairs, dropped = self.pairer.push(side, _stamp_ns(msg), (msg, time.monotonic()))
+            for left, right in pairs:
+                if self._pending is not None:
+                    self.pairs_dropped += 1
+                self._pending = (left.item[0], right.item[0], max(left.item[1], right.item[1]))
+            if pairs:
+                self._pending_cv.notify()
+        self._acknowledge_dropped(dropped)
+
+    def _acknowledge_dropped(self, dropped: list[Dropped]) -> None:
+        for d in dropped:
+            self.last_error = f"{SIDES[d.frame.side]} frame not paired: {d.reason}"
+            self.get_logger().warn(self.last_error, throttle_duration_sec=5.0)
+            self._acknowledge(d.frame.item[0])
+
+    def _work(self) -> None:
+        while not self._stop.is_set():
+            with self._pending_cv:
+                while self._pending is None and not self._stop.is_set():
+                    self._pending_cv.wait(0.2)
+                pending, self._pending = self._pending, None
+            if pending is None:
+                continue
+            left, right, _ = pending
+            try:
+                self._process(left, right)
+            except Exception as e:  # a bad pair must never stop the node
+                self.last_error = f"pair processing failed: {type(e).__name__}: {e}"
+                self.get_logger().error(self.last_error)
+            finally:
+                with self._pending_cv:
+                    self.pairs_examined += 1
+                self._acknowledge(left)
+                self._acknowledge(right)
+
+    def _acknowledge(self, msg: Any) -> None:
+        try:
+            self.pub_examined.publish(msg.header)
+        except Exception as e:  # shutting down, or a header that cannot be published
+            self.get_logger().warn(f"cannot acknowledge frame: {type(e).__name__}: {e}", throttle_duration_sec=5.0)
+
+    def _grey(self, side: int, msg: Any) -> Any:
+        try:
+            return compressed_to_grey(msg) if isinstance(msg, CompressedImage) else image_to_grey(msg)
+        except ImageConversionError as e:
+            self.frames_bad[side] += 1
+            self.session.bad_frame(side, str(e))
+            self.last_error = f"bad {SIDES[side]} frame: {e}"
+            self.get_logger().warn(self.last_error, throttle_duration_sec=5.0)
+            return None
+
+    def _process(self, left: Any, right: Any) -> None:
+        msgs = (left, right)
+        imgs = [self._grey(c, m) for c, m in enumerate(msgs)]
+        if imgs[0] is None or imgs[1] is None:
+            return
+        for c, m in enumerate(msgs):
+            self.frame_ids[c] = m.header.frame_id or self.frame_ids[c]
+        params = detection_params(str(self.p("distortion_model")), float(self.p("gamma")))
+        name = f"shot_{self.pairs_examined:06d}"
+        dets = (detect_target(imgs[0], self.target, params, name=name),
+                detect_target(imgs[1], self.target, params, name=name))
+        out = self.session.examine(dets, (_stamp_ns(left), _stamp_ns(right)),
+                                   drawing=self.pub_det.get_subscription_count() > 0)
+        if out.stored and self.p("output_dir"):
+            for c, side in enumerate(SIDES):
+                folder = Path(self.p("output_dir")) / side
+                folder.mkdir(parents=True, exist_ok=True)
+                cv2.imwrite(str(folder / f"{name}.png"), imgs[c])  # the CLI's input, and the report's images
+        vis = self.session.picture((imgs[0], imgs[1]), dets, out)
+        if vis is not None:
+            self.pub_det.publish(image_msg(vis, left.header))
+        if out.stored:
+            self.get_logger().info(out.why)
+            self.publish_status()
+        if out.ready and self.p("auto_calibrate") and self.auto_done_at != out.both and not self.calibrating.locked():
+            self.auto_done_at = out.both
+            threading.Thread(target=self.run_calibration, name="auto-calibrate", daemon=True).start()
+
+    # -- status -------------------------------------------------------------------------
+    def pairs_dropped_session(self) -> int:
+        with self._pending_cv:
+            return self.pairs_dropped - self._session_start
+
+    def sync_note(self) -> str:
+        """Why frames arrive but never pair (empty while they pair)."""
+        with self._pending_cv:
+            return self.pairer.stats.never_paired_note(self.pairer.slop_s,
+                                                       (self.subs[0].resolved, self.subs[1].resolved))
+
+    def busy_note(self) -> str:
+        """What the pairs dropped while the detector was busy mean (empty: none this session)."""
+        dropped = self.pairs_dropped_session()
+        return (f"{dropped} pair(s) arrived while the detector was busy and were dropped unexamined (only the newest "
+                "pair waits). Replaying a recording: use replay_node's lock-step mode; live cameras: hold each pose "
+                "longer") if dropped else ""
+
+    def notes(self) -> list[str]:
+        """What keeps shots from arriving: frames that never pair, pairs dropped while the detector was busy."""
+        return [n for n in (self.sync_note(), self.busy_note()) if n]
+
+    def publish_status(self) -> None:
+        self.pub_status.publish(stereo_status_message(self))
+
+    def header(self, side: int) -> Header:
+        frame = self.frame_ids[side] or str(self.p(f"{SIDES[side]}_frame"))
+        return Header(stamp=self.get_clock().now().to_msg(), frame_id=frame)
+
+    # -- calibration ------------------------------------------------------------------------
+    def options(self, min_views: int) -> StereoSessionOptions:
+        opts = CalibrationOptions(method=self.method, distortion=str(self.p("distortion_model")),
+                                  zero_skew=bool(self.p("zero_skew")), min_views=min_views)
+        return StereoSessionOptions(opts, float(self.p("alpha")), str(self.p("camera_name")), str(self.p("left_frame")),
+                                    str(self.p("right_frame")))
+
+    def run_calibration(self) -> tuple[bool, str]:
+        if not self.calibrating.acquire(blocking=False):
+            return False, "a calibration is already running; try again when it finishes"
+        try:
+            return self._calibrate()
+        except Exception as e:  # never let a numerical failure take the node down
+            self.get_logger().error(f"stereo calibration crashed: {type(e).__name__}: {e}")
+            return False, f"stereo calibration failed: {type(e).__name__}: {e}"
+        finally:
+            self.calibrating.release()
+
+    def _refuse(self, why: str) -> tuple[bool, str]:
+        self.get_logger().warn(f"stereo calibration refused: {why}")
+        return False, f"stereo calibration failed: {why}"
+
+    def _calibrate(self) -> tuple[bool, str]:
+        snap = self.session.snapshot()
+        if snap.both < snap.min_views:
+            return self._refuse(self.session.refusal(snap, self.notes()))
+        dets = snap.detections()
+        try:
+            outcome = calibrate_session(dets, self.target, self.options(snap.min_views))
+        except (CalibrationError, PascalCalibError) as e:
+            return self._refuse(f"{e} (nothing published; the previous result stays)")
+        out_dir = stereo_output_dir(str(self.p("camera_name")), str(self.p("output_dir")))
+        try:
+            files = outcome.write(out_dir)
+        except OSError as e:
+            return self._refuse(f"cannot write the calibration files in {out_dir}: {e} (nothing published)")
+        self._publish(outcome)
+        self.result_line = answer_line(outcome, files)
+        self.get_logger().info(f"stereo calibrated: {self.result_line}")
+        self.report_note = ""
+        if self.p("output_dir"):  # the stored frames are there: the reports, after the result is out
+            frames = Path(str(self.p("output_dir")))
+
+            def frame_of(c: int, name: str) -> Path | None:
+                p = frames / SIDES[c] / f"{name}.png"
+                return p if p.exists() else None
+
+            _, self.report_note = write_session_report(outcome, dets, self.target, frames / "report", frame_of)
+            if self.report_note:
+                self.get_logger().warn(self.report_note)
+        self.publish_status()
+        return True, self.result_line + (f"; {self.report_note}" if self.report_note else "")
+
+    def _publish(self, outcome: StereoOutcome) -> None:
+        infos = outcome.camera_infos()
+        msgs = (camera_info_msg(infos[0], self.header(0)), camera_info_msg(infos[1], self.header(1)))
+        self.outcome, self.info_msgs = outcome, msgs
+        for pub, msg in zip(self.pub_info, msgs, strict=True):
+            pub.publish(msg)
+        self.pub_transform.publish(transform_msg(outcome.rig.pose_in_reference(1), str(self.p("left_frame")),
+                                                 str(self.p("right_frame")), self.get_clock().now().to_msg()))
+
+    # -- services -------------------------------------------------------------------------
+    def _srv_calibrate(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
+        resp.success, resp.message = self.run_calibration()
+        return resp
+
+    def _srv_reset(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
+        n = self.session.clear()
+        self.auto_done_at = -1
+        with self._pending_cv:
+            self._session_start = self.pairs_dropped
+        running = " (a running calibration finishes on its own copy of the shots)" if self.calibrating.locked() else ""
+        resp.success, resp.message = True, f"cleared {n} shot(s){running}; the last result is kept"
+        self.get_logger().info(resp.message)
+        self.publish_status()
+        return resp
+
+    def _srv_commit(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
+        resp.success, resp.message = commit_pair(self.set_info_clients, self.info_msgs)
+        if resp.success:
+            self.get_logger().info(f"commit: {resp.message}")
+        else:
+            self.get_logger().warn(f"commit: {resp.message}")
+        return resp
+
+    def stop(self) -> None:
+        """Stop the detector thread (called before the node is destroyed)."""
+        self._stop.set()
+        with self._pending_cv:
+            self._pending_cv.notify_all()
+        if self._worker.is_alive():
+            self._worker.join(timeout=5.0)

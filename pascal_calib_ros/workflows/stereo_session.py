@@ -1,0 +1,132 @@
+"""A live stereo session's calibration, ROS-free: what the node's stereo mode runs on ``~/calibrate``.
+
+:func:`calibrate_session` is :func:`~.stereo.stereo_from_detections` (the CLI's ``pascal-calib
+stereo`` on the same detections gives the same numbers) followed by the checks a published
+calibration must pass (:func:`stereo_doubts`); only then are the files written
+(:meth:`~.stereo.StereoOutcome.write`): ``left.yaml``, ``right.yaml``, ``stereo.yaml`` and each
+camera's calibration record (``left.calibration.json``, ``right.calibration.json``: the covariance
+``pascal-calib verify`` and ``export`` need), as the CLI writes them, and, when the frames were
+kept, each camera's report and the pair's page (:func:`write_session_report`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..calibrate.options import CalibrationOptions
+from ..calibrate.rig import RigOptions
+from ..detect.detection import Detection
+from ..errors import PascalCalibError
+from ..targets import Target
+from .stereo import Pairing, StereoOptions, StereoOutcome, stereo_from_detections, write_reports
+
+# a published rig transform must be known at least this well (the hand-eye node's limits)
+MAX_SIGMA_DEG = 0.5
+MAX_SIGMA_MM = 5.0
+# a pair whose rectified rows disagree by more than this is not a calibration to publish (views of a
+# target that moved between the two exposures, wrong pairs)
+MAX_EPIPOLAR_RMS_PX = 1.0
+
+
+class StereoSessionError(PascalCalibError):
+    """The session's stereo calibration cannot be published; the message says why and what to do."""
+
+
+@dataclass(frozen=True)
+class StereoSessionOptions:
+    """What the node's parameters set for a stereo calibration."""
+
+    calibration: CalibrationOptions
+    alpha: float = 0.0
+    camera_name: str = "camera"
+    left_frame: str = "left_camera_optical_frame"
+    right_frame: str = "right_camera_optical_frame"
+
+    def stereo(self) -> StereoOptions:
+        return StereoOptions(RigOptions(calibration=self.calibration), self.alpha, self.camera_name,
+                             self.left_frame, self.right_frame)
+
+
+def stereo_output_dir(camera_name: str, output_dir: str = "") -> Path:
+    """Where a stereo session's files go: ``output_dir``, else ``~/.ros/camera_info/<camera_name>/``
+    (camera_info_manager's default place for cameras named ``<camera_name>/left`` and ``/right``)."""
+    return Path(output_dir).expanduser() if output_dir else Path.home() / ".ros" / "camera_info" / camera_name
+
+
+def stereo_doubts(outcome: StereoOutcome) -> list[str]:
+    """Why the calibration cannot be stood behind (empty: it can): a non-finite value, a rig
+    transform not known within :data:`MAX_SIGMA_DEG` / :data:`MAX_SIGMA_MM`, or an epipolar RMS
+    above :data:`MAX_EPIPOLAR_RMS_PX`."""
+    doubts = []
+    infos = outcome.camera_infos()
+    values = [np.ravel(a) for i in infos for a in (i.K, i.D, i.R, i.projection)]
+    values.append(np.ravel(outcome.stereo.rig.matrix))
+    if not all(np.all(np.isfinite(v)) for v in values):
+        doubts.append("a parameter is not finite")
+    sr, st = outcome.stereo.sigma_rotation_deg, outcome.stereo.sigma_translation_mm
+    if not (np.all(np.isfinite(sr)) and np.all(np.isfinite(st))):
+        doubts.append("the rig transform has no uncertainty (no covariance)")
+    elif np.linalg.norm(sr) > MAX_SIGMA_DEG or np.linalg.norm(st) > MAX_SIGMA_MM:
+        doubts.append(f"the rig transform is not determined well enough: sigma {np.linalg.norm(sr):.3f} deg, "
+                      f"{np.linalg.norm(st):.2f} mm (limits {MAX_SIGMA_DEG} deg, {MAX_SIGMA_MM} mm); take more shots "
+                      "both cameras see, tilted about different axes")
+    if not np.isfinite(outcome.epipolar_rms) or outcome.epipolar_rms > MAX_EPIPOLAR_RMS_PX:
+        doubts.append(f"epipolar RMS {outcome.epipolar_rms:.3f} px (limit {MAX_EPIPOLAR_RMS_PX} px): the two views "
+                      "of a shot disagree, as when the target moved between the cameras' exposures; synchronise "
+                      "the cameras or hold the target still")
+    return doubts
+
+
+def calibrate_session(dets: list[list[Detection]], target: Target, options: StereoSessionOptions) -> StereoOutcome:
+    """The joint calibration of the session's shots (``dets[0]`` left, ``dets[1]`` right), checked;
+    nothing written. Raises :class:`~..calibrate.result.CalibrationError` when it cannot be
+    calibrated and :class:`StereoSessionError` when the result cannot be published."""
+    outcome = stereo_from_detections(dets, target, options.stereo())
+    doubts = stereo_doubts(outcome)
+    if doubts:
+        raise StereoSessionError("; ".join(doubts))
+    return outcome
+
+
+ShotImage = Callable[[int, str], "Path | None"]  # (camera, shot name) -> its stored frame, if kept
+
+
+def write_session_report(outcome: StereoOutcome, dets: list[list[Detection]], target: Target, report_dir: str | Path,
+                         frame_of: ShotImage) -> tuple[list[Path], str]:
+    """Each camera's report and the pair's page in ``report_dir``, the images read through
+    ``frame_of`` (the node's stored frames); returns the files and, when the report could not be
+    written, why (a report never costs the calibration)."""
+    names = [d.name for d in dets[0]]
+    pairing = Pairing(names, [[frame_of(c, n) for n in names] for c in (0, 1)], "as stored by the node")
+    try:
+        return write_reports(outcome.rig, dets, pairing, report_dir, outcome, target), ""
+    except Exception as e:  # a report must never cost the calibration
+        return [], f"report not written: {type(e).__name__}: {e}"
+
+
+def answer_line(outcome: StereoOutcome, files: list[Path]) -> str:
+    """The ``~/calibrate`` answer: each camera's K and RMS, the rig transform with its sigma, the
+    rectification's baseline, the epipolar RMS, the shots used, the files and the warnings."""
+    rig, sd = outcome.rig, outcome.stereo
+    cams = []
+    for c, name in enumerate(rig.names):
+        r = rig.cameras[c]
+        K = r.K
+        cams.append(f"{name}: fx={K[0, 0]:.2f} fy={K[1, 1]:.2f} cx={K[0, 2]:.2f} cy={K[1, 2]:.2f} rms={r.rms:.3f}px "
+                    f"views={r.n_used}")
+    t, sr, st = sd.rig.translation, sd.sigma_rotation_deg, sd.sigma_translation_mm
+    both = int(np.sum(rig.used.sum(0) >= 2))
+    parts = [*cams,
+             f"X_right = R X_left + T: T=[{', '.join(f'{v:.5f}' for v in t)}] m "
+             f"(+- [{', '.join(f'{v:.3f}' for v in st)}] mm), angle {sd.rig.angle_deg():.4f} deg "
+             f"(+- [{', '.join(f'{v:.4f}' for v in sr)}] deg)",
+             f"baseline {outcome.rectification.baseline:.5f} m, epipolar RMS {outcome.epipolar_rms:.3f} px",
+             f"shots={both} both/{rig.used.shape[1]}"]
+    if files:
+        parts.append(f"yaml={files[0]}, {files[1].name}, {files[2].name}")
+    parts += [f"warning: {w}" for w in rig.warnings]
+    return "; ".join(parts)
