@@ -7,7 +7,7 @@ NEXT.yaml::
     done: false                    # the current views reach the goal (the real sigma, never a prediction)
     projection_sigma_px: 0.52      # worst projection sigma over every pixel of the image now
     goal_sigma_px: 0.1
-    distance_m: 0.45               # the views' median distance, where the sigma is evaluated
+    distance_m: 0.45               # where the sigma is evaluated: the median distance to the target's centre
     views_used: 5
     suggestions:                   # best first
       - camera_T_target:           # the target YAML frame in the camera optical frame: X_cam = R X + t
