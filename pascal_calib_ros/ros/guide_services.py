@@ -118,7 +118,9 @@ class NodeGuide:
         if v is not None:
             out = {"guide_sigma_px": round(v.sigma_px, 5), "guide_goal_sigma_px": v.goal_sigma_px,
                    "guide_done": v.done, "guide_computing": v.computing, "guide_suggestion": v.suggestion,
-                   "guide_predicted_sigma_px": round(v.predicted_sigma_px, 5), "guide_match": round(v.overlap, 3),
+                   "guide_predicted_sigma_px": round(v.predicted_sigma_px, 5),
+                   "guide_camera_T_target": _vec([*v.pose.translation, *v.pose.quat], 6) if v.pose else "",
+                   "guide_match": round(v.overlap, 3),
                    "guide_matched": v.matched, "guide_hint": v.hint, "guide_error": v.error,
                    "guide_update_s": round(v.update_seconds, 3)}
         if np.isfinite(self.last_seconds):

@@ -26,8 +26,9 @@ CALIBRATION_NODE_INTERFACES = (
               'frames were dropped while the detector was busy, the message and `frames_dropped_note` say how many '
               'and what to do; with `guide:=true` the guide\'s `guide_sigma_px` (real, of the stored views), '
               '`guide_goal_sigma_px`, `guide_done`, `guide_computing`, `guide_suggestion`, '
-              '`guide_predicted_sigma_px`, `guide_match`, `guide_matched`, `guide_hint`, `guide_error`, '
-              '`guide_update_s`; after a `~/suggest`, `suggest_s` (its time)'),
+              '`guide_predicted_sigma_px`, `guide_camera_T_target` (`[tx, ty, tz, qx, qy, qz, qw]`: the suggestion\'s '
+              'target frame in the camera optical frame, m), `guide_match`, `guide_matched`, `guide_hint`, '
+              '`guide_error`, `guide_update_s`; after a `~/suggest`, `suggest_s` (its time)'),
     Interface('~/examined_frames', 'pub', 'std_msgs/Header',
               "the header of each frame the detector has examined (reliable, transient local); `replay_node`'s "
               'lock-step mode waits for it'),

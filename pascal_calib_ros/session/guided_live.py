@@ -31,6 +31,7 @@ from ..calibrate.pipeline import calibrate
 from ..calibrate.result import CalibrationError
 from ..detect.detection import Detection
 from ..geometry.camera import Camera
+from ..geometry.transform import Transform
 from ..targets import Target
 from .guide import GuideState, Match
 
@@ -60,6 +61,7 @@ class GuideView:
     computing: bool
     suggestion: str  # the current suggestion in words ("" before the first frame)
     predicted_sigma_px: float
+    pose: Transform | None  # the suggestion's camera_T_target (target YAML frame -> camera optical frame)
     index: int
     count: int
     error: str
@@ -206,6 +208,7 @@ class GuidedLive:
                              goal_sigma_px=self.goal_sigma_px, done=bool(s is not None and s.done),
                              computing=self.computing, suggestion=describe(s) if s is not None else "",
                              predicted_sigma_px=cur.predicted_sigma_px if cur is not None else float("nan"),
+                             pose=cur.pose if cur is not None else None,
                              index=s.index if s is not None else 0, count=len(s.suggestions) if s is not None else 0,
                              error=self.error, update_seconds=self.update_seconds)
 
