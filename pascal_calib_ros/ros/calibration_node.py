@@ -130,7 +130,7 @@ class CalibrationNode(Node):
         self.create_service(Trigger, "~/commit", self._srv_commit, callback_group=services)
         self.create_service(Trigger, "~/capture", self._srv_capture, callback_group=services)
         self.create_service(Trigger, "~/verify", self._srv_verify, callback_group=services)
-        self.guide = NodeGuide(self, services)  # ~/suggest, ~/skip_suggestion, the person guide (guide:=true)
+        self.guide = NodeGuide(self, services, LATCHED)  # ~/suggest, ~/skip_suggestion, the person guide (guide:=true)
         self.set_info_client = self.create_client(SetCameraInfo, self.p("set_camera_info_service"),
                                                   callback_group=services)
         compressed = self.p("transport") == "compressed"

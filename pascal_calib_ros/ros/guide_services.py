@@ -70,17 +70,17 @@ def person_answer(doc: dict[str, Any]) -> str:
 class NodeGuide:
     """The guide's interfaces on ``node`` (module docstring); the person guide only with ``guide``."""
 
-    def __init__(self, node: CalibrationNode, services: Any) -> None:
+    def __init__(self, node: CalibrationNode, services: Any, latched: Any) -> None:
+        """``services``: the callback group of the node's quick services; ``latched``: its reliable,
+        transient-local QoS."""
         self.node = node
         self.live: GuidedLive | None = None
         if node.p("guide"):
             opts = CalibrationOptions(method=node.method, distortion=str(node.p("distortion_model")),
                                       zero_skew=bool(node.p("zero_skew")))
             self.live = GuidedLive(node.target, opts, float(node.p("goal_sigma_px")), int(node.p("suggest_count")))
-        from .calibration_node import LATCHED
-
-        self.pub_poses = node.create_publisher(PoseArray, "~/suggested_tool_poses", LATCHED)
-        self.pub_pose = node.create_publisher(PoseStamped, "~/suggested_tool_pose", LATCHED)
+        self.pub_poses = node.create_publisher(PoseArray, "~/suggested_tool_poses", latched)
+        self.pub_pose = node.create_publisher(PoseStamped, "~/suggested_tool_pose", latched)
         self.last_seconds = float("nan")
         node.create_service(Trigger, "~/suggest", self._srv_suggest, callback_group=MutuallyExclusiveCallbackGroup())
         node.create_service(Trigger, "~/skip_suggestion", self._srv_skip, callback_group=services)

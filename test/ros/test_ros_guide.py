@@ -233,7 +233,8 @@ def test_person_guide_stores_what_matches_and_skip_moves_on(tmp_path: Path) -> N
             T = _suggested(latest_status(status))
             assert T is not None
             out.image = render(T, 10 + stored)
-            assert client.spin_until(lambda: int(latest_status(status)["views_accepted"]) == stored + 1, 15), (
+            want = str(stored + 1)
+            assert client.spin_until(lambda: latest_status(status)["views_accepted"] == want, 15), (  # noqa: B023
                 f"{latest_status(status)}\n{cal.log()}")
             stored += 1
             out.image = far  # the person walks off: nothing stored meanwhile
