@@ -112,6 +112,15 @@ def _latched(client: RosClient, kind: Any, topic: str) -> list:
     return got
 
 
+def _pose_msg(T: Transform) -> Any:
+    from geometry_msgs.msg import Pose as PoseMsg
+
+    p = PoseMsg()
+    p.position.x, p.position.y, p.position.z = (float(v) for v in T.translation)
+    p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w = (float(v) for v in T.quat)
+    return p
+
+
 def _pose_of(p: Any) -> Transform:
     return Transform.from_quat([p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w],
                                [p.position.x, p.position.y, p.position.z])
@@ -139,34 +148,36 @@ def test_arm_loop_suggest_move_capture_reaches_done(tmp_path: Path) -> None:
         # no views: refused with the reason, nothing published
         r = client.call_trigger("/pascal_calib/suggest")
         assert not r.success and r.message.startswith("no suggestion: "), r.message
-        # the start: three poses the user chose (the arm's own first views)
-        for G in arm.s.robot_poses_true:
-            assert arm.move(G, out)
-            if arm.moves == 1:
-                assert client.spin_until(lambda: latest_status(status).get("robot_pose_type", "").endswith(
-                    "PoseStamped"), 30), f"{latest_status(status)}\n{cal.log()}"
-            r = client.call_trigger("/pascal_calib/capture", timeout=15)
-            assert r.success, f"{r.message}\n{cal.log()}"
+        # the example script's loop (tools/guided_arm_example.py) with the simulated arm as its move_arm
+        from guided_arm_example import GuidedArmLoop
+
+        def move(p: PoseStamped) -> bool:
+            assert p.header.frame_id == "base_link"
+            return arm.move(_pose_of(p.pose), out)
+
+        loop = GuidedArmLoop(client.node, client.executor, move, log=lambda _: None)
+        first = arm.s.robot_poses_true[0]
+        assert arm.move(first, out)
+        assert client.spin_until(lambda: latest_status(status).get("robot_pose_type", "").endswith("PoseStamped"),
+                                 30), f"{latest_status(status)}\n{cal.log()}"
+        assert loop.capture()
+        r = client.call_trigger("/pascal_calib/suggest")
+        assert not r.success and "1 usable view(s); suggestions need at least 3" in r.message, r.message
+        start = [PoseStamped(pose=_pose_msg(G)) for G in arm.s.robot_poses_true[1:]]
+        for p in start:
+            p.header.frame_id = "base_link"
+        assert loop.start(start) == 2, cal.log()
         assert not ranked and not best  # nothing was published by the refusal
-        views, answers = 3, []
-        while True:
-            ranked.clear()
-            r = client.call_trigger("/pascal_calib/suggest", timeout=120)
-            answers.append(r.message)
-            assert r.success, f"{r.message}\n{cal.log()}"
-            if r.message.startswith("done"):
-                break
-            assert re.match(r"next: tool t=\[.*\] m q=\[.*\] in base_link: predicted sigma [\d.]+ px", r.message)
-            assert client.spin_until(lambda: bool(ranked) and bool(best), 10), cal.log()
-            msg = ranked[-1]
-            assert msg.header.frame_id == "base_link" and len(msg.poses) >= 1
-            assert np.allclose(_pose_of(best[-1].pose).matrix, _pose_of(msg.poses[0]).matrix)
-            assert any(arm.move(_pose_of(p), out) for p in msg.poses), "every suggestion loses the target"
-            r = client.call_trigger("/pascal_calib/capture", timeout=15)
-            assert r.success, f"{r.message}\n{cal.log()}"
-            views += 1
-            assert views <= MAX_VIEWS, "\n".join(answers)
+        done, answers = loop.run(max_views=MAX_VIEWS - 3)
+        views = int(re.search(r"from (\d+) views", answers[-1])[1])  # type: ignore[index]
+        assert done, "\n".join(answers)
+        assert all(re.match(r"next: tool t=\[.*\] m q=\[.*\] in base_link: predicted sigma [\d.]+ px", a)
+                   for a in answers[:-1]), answers
         assert views >= 4, answers  # the loose goals still need guided views
+        assert client.spin_until(lambda: bool(ranked) and bool(best), 10), cal.log()
+        msg = ranked[-1]
+        assert msg.header.frame_id == "base_link" and len(msg.poses) >= 1
+        assert np.allclose(_pose_of(best[-1].pose).matrix, _pose_of(msg.poses[0]).matrix)
         sigma = float(re.search(r"now sigma ([\d.]+) px", answers[-1])[1])  # type: ignore[index]
         assert sigma <= GOAL_PX, answers[-1]
         he = _latched(client, TransformStamped, "/pascal_calib/hand_eye")
