@@ -4,7 +4,9 @@ calibration of the stored views and the ranking of the next ones) runs on anothe
 
 - :meth:`GuidedLive.examine` compares each frame's detection with the current suggestion: a usable
   frame is to be stored only when it matches the suggested outline (overlap >= 0.85); the live
-  session's stillness gate still applies (:class:`~.live.LiveSession`).
+  session's stillness gate still applies (:class:`~.live.LiveSession`). A frame that does not
+  match gets one hint (position, then distance, then tilt from the live target's pose found with
+  the current camera, :func:`live_pose`).
 - :meth:`GuidedLive.stored` is called after a view was stored: the update then runs on a worker
   thread (:meth:`GuidedLive.update_now` is its body), frames keep flowing, and nothing is stored
   until the next suggestion is there (the picture says "computing the next view...").
@@ -26,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from ..calibrate.handeye.view_poses import camera_pose
 from ..calibrate.options import MIN_VIEWS, CalibrationOptions
 from ..calibrate.pipeline import calibrate
 from ..calibrate.result import CalibrationError
@@ -78,6 +81,16 @@ def describe(state: GuideState) -> str:
             f"{p.distance:.2f} m, tilt {p.tilt_deg:.0f} deg about {p.axis_deg:.0f} deg, roll {p.roll_deg:.0f} deg")
 
 
+def live_pose(state: GuideState, det: Detection) -> Transform | None:
+    """The live target's pose (camera_T_target; its rotation is the target YAML frame's) from the
+    current camera (the calibration, or the guess before one), None when it cannot be found. Only
+    its normal is used (the tilt hint): good to a few degrees from one frame."""
+    try:
+        return camera_pose(det, state.target, state.camera or state.camera_guess, state.target.local_origin)
+    except Exception:  # no pose from this frame: the hint says position and distance only
+        return None
+
+
 class GuidedLive:
     """The guide of a live session (module docstring); every method may be called from any thread."""
 
@@ -120,6 +133,10 @@ class GuidedLive:
                 return GuideVerdict(False, f"DONE: sigma {state.sigma_px:.3f} px <= goal {state.goal_sigma_px:g} px; "
                                            "call ~/calibrate", None)
             m = state.match(det)
+            if not m.matched and det.ok:  # the tilt hint needs the live target's pose
+                live = live_pose(state, det)
+                if live is not None:
+                    m = state.match(det, live)
             self.last_match = m
         if m.matched:
             return GuideVerdict(True, f"match {m.overlap:.2f}: {m.hint}", m)

@@ -97,3 +97,23 @@ def test_the_guide_stores_matching_views_and_says_done_from_the_real_sigma(ring_
 def test_bad_goal_is_refused(ring_target: Target) -> None:
     with pytest.raises(ValueError, match="goal_sigma_px"):
         GuidedLive(ring_target, CalibrationOptions(), goal_sigma_px=0.0)
+
+
+def test_the_hint_names_the_tilt_once_position_and_distance_agree(ring_target: Target) -> None:
+    """Same place and distance, tilted 45 degrees about another axis: the outlines differ in shape
+    only, and the hint (from the live target's pose) says which way to tilt."""
+    from pascal_calib_ros.analysis.view_ranking import RankedView
+
+    guide = GuidedLive(ring_target, CalibrationOptions(), goal_sigma_px=0.1)
+    want = Placement((0.5 * W, 0.5 * H), 0.45, 45.0, 0.0, 0.0)
+    T_want = place(ring_target, TRUE, want)
+    _, det = _frame(ring_target, place(ring_target, TRUE, Placement(want.pixel, 0.45, 45.0, 90.0, 0.0)), 3)
+    guide.examine(det)  # makes the state
+    guide.state.camera = TRUE  # type: ignore[union-attr]  # as after a calibration
+    guide.state.suggestions = [RankedView(T_want, want, float("nan"), np.zeros((0, 0)))]  # type: ignore[union-attr]
+    guide.state.index = 0  # type: ignore[union-attr]
+    verdict = guide.examine(det)
+    assert not verdict.store and verdict.match is not None and verdict.match.overlap < 0.85
+    assert verdict.match.hint.endswith("away") and verdict.match.hint.startswith(("tilt", "turn")), verdict.line
+    _, det2 = _frame(ring_target, T_want, 4)
+    assert guide.examine(det2).store
