@@ -155,14 +155,21 @@ class GuidedLive:
         return True
 
     def _run(self, views: list[Detection], generation: int) -> None:
-        while True:
-            self.update_now(views, generation)
+        try:
+            while True:
+                self.update_now(views, generation)
+                with self.lock:
+                    again, self._again = self._again, None
+                    if again is None or generation != self.generation:
+                        return
+                views = again
+        except Exception as e:  # never leave the guide "computing" for ever
             with self.lock:
-                again, self._again = self._again, None
-                if again is None or generation != self.generation:
+                self.error = f"guide update failed: {type(e).__name__}: {e}"
+        finally:
+            with self.lock:
+                if generation == self.generation:
                     self.computing = False
-                    return
-            views = again
 
     def update_now(self, views: list[Detection], generation: int | None = None) -> None:
         """Recalibrate ``views`` and rank the next suggestions (the worker's body; blocking). The
@@ -185,6 +192,8 @@ class GuidedLive:
                     error = "the calibration has no covariance to predict from; showing a fixed view"
             except CalibrationError as e:
                 error = f"the views do not calibrate yet ({e}); showing a fixed view"
+            except Exception as e:  # a numerical failure must not stop the guide
+                error = f"calibration failed ({type(e).__name__}: {e}); showing a fixed view"
         try:
             with threadpool_limits(1, "blas"):
                 work.update(refinement, self.size[0], self.size[1], len(ok))

@@ -117,3 +117,25 @@ def test_the_hint_names_the_tilt_once_position_and_distance_agree(ring_target: T
     assert verdict.match.hint.endswith("away") and verdict.match.hint.startswith(("tilt", "turn")), verdict.line
     _, det2 = _frame(ring_target, T_want, 4)
     assert guide.examine(det2).store
+
+
+def test_a_failing_update_is_reported_and_never_leaves_the_guide_computing(ring_target: Target,
+                                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    import pascal_calib_ros.session.guided_live as gl
+
+    def broken(*_: object, **__: object) -> None:
+        raise np.linalg.LinAlgError("SVD did not converge")
+
+    monkeypatch.setattr(gl, "calibrate", broken)
+    guide = GuidedLive(ring_target, CalibrationOptions(), goal_sigma_px=0.1)
+    dets = []
+    for k in range(3):
+        _, det = _frame(ring_target, place(ring_target, TRUE, Placement((0.5 * W, 0.5 * H), 0.5, 30.0, 120.0 * k,
+                                                                         0.0)), k)
+        guide.examine(det)
+        dets.append(det)
+    guide.stored(dets)
+    _wait(guide)
+    v = guide.view()
+    assert not v.computing and "LinAlgError" in v.error and not v.done and v.count >= 1
+    assert guide.examine(dets[0]).line != COMPUTING
