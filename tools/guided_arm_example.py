@@ -148,9 +148,16 @@ def main(argv: list[str] | None = None) -> int:
     executor.add_node(node)
     try:
         loop = GuidedArmLoop(node, executor, move_arm, args.node)
+        if not START_POSES:
+            print("START_POSES is empty: the node needs 3 or more stored views with a robot pose already "
+                  "(fill in START_POSES, or capture them yourself first)")
         stored = loop.start([_pose_stamped(node, args.base_frame, t, q) for t, q in START_POSES])
         print(f"{stored} start view(s) stored")
-        done, _ = loop.run(args.max_views)
+        try:
+            done, _ = loop.run(args.max_views)
+        except RuntimeError as e:
+            print(f"stopped: {e}")
+            return 2
         print("done" if done else f"not done after {args.max_views} guided views")
         if not args.no_calibrate:
             r = loop.call("calibrate", 300.0)
