@@ -27,7 +27,7 @@ def guide_lines(v: GuideView) -> list[tuple[str, tuple[int, int, int]]]:
     else:
         first = (f"match {v.overlap:.2f} (need {MATCH_OVERLAP:.2f}): {v.hint or 'show the target'}",
                  MATCHED_BGR if v.matched else WAIT_BGR)
-    sigma = "-" if not np.isfinite(v.sigma_px) else f"{v.sigma_px:.3f} px"
+    sigma = "none yet (3 views first)" if not np.isfinite(v.sigma_px) else f"{v.sigma_px:.3f} px"
     second = (f"sigma now {sigma}, goal {v.goal_sigma_px:g} px", BAR_FULL_BGR if v.done else TEXT_BGR)
     lines = [first, second]
     if v.suggestion and not v.done:
