@@ -61,6 +61,7 @@ from ..workflows.outputs import (
 from ..workflows.verify import hand_eye_reference_of_result, reference_of_file, reference_of_result, verify_views
 from .commit import commit_camera_info
 from .conversions import camera_info_msg, transform_msg
+from .guide_services import NodeGuide
 from .image_subscription import MatchedImageSubscription
 from .params import ParameterError, declare_parameters, params_for, validate_parameters
 from .robot_poses import RobotPoseInput
@@ -85,7 +86,7 @@ class CalibrationNode(Node):
         self.pose_topic = str(self.p("robot_pose_topic"))
         self.session = LiveSession(self.p("min_views"), self.p("max_views"), self.p("min_view_distance"),
                                    max_motion_of(float(self.p("max_motion_px")), str(self.p("collect")),
-                                                 bool(self.pose_topic)), str(self.p("collect")))
+                                                 bool(self.pose_topic), bool(self.p("guide"))), str(self.p("collect")))
         self.result: CalibrationResult | None = None
         self.result_msg: CameraInfo | None = None
         self.frames_received = self.frames_dropped = self.frames_bad = self.frames_examined = 0
@@ -129,6 +130,7 @@ class CalibrationNode(Node):
         self.create_service(Trigger, "~/commit", self._srv_commit, callback_group=services)
         self.create_service(Trigger, "~/capture", self._srv_capture, callback_group=services)
         self.create_service(Trigger, "~/verify", self._srv_verify, callback_group=services)
+        self.guide = NodeGuide(self, services, LATCHED)  # ~/suggest, ~/skip_suggestion, the person guide (guide:=true)
         self.set_info_client = self.create_client(SetCameraInfo, self.p("set_camera_info_service"),
                                                   callback_group=services)
         compressed = self.p("transport") == "compressed"
@@ -161,7 +163,10 @@ class CalibrationNode(Node):
         motion = None
         if "max_motion_px" in changes or "collect" in changes:
             motion = max_motion_of(float(changes.get("max_motion_px", self.p("max_motion_px"))),
-                                   str(changes.get("collect", self.p("collect"))), bool(self.pose_topic))
+                                   str(changes.get("collect", self.p("collect"))), bool(self.pose_topic),
+                                   bool(self.p("guide")))
+        if "goal_sigma_px" in changes:
+            self.guide.set_goal(float(changes["goal_sigma_px"]))
         if "collect" in changes:
             self.session.collect = str(changes["collect"])
         self.session.set_limits(changes.get("min_views"), changes.get("max_views"), changes.get("min_view_distance"),
@@ -224,13 +229,16 @@ class CalibrationNode(Node):
         if poses is not None:  # the pose for this stamp may still be on its way (another topic)
             poses.wait_until_covers(stamp_ns, max(float(self.p("pose_max_age")), POSE_ARRIVAL_WAIT_S))
         out = self.session.examine(det, stamp_ns, poses, float(self.p("pose_max_age")), received_at,
-                                   drawing=self.pub_det.get_subscription_count() > 0)
+                                   drawing=self.pub_det.get_subscription_count() > 0, guide=self.guide.examine(det))
+        if out.accepted:
+            self.guide.stored(self.session.snapshot().views)  # the next suggestion, on the guide's own thread
         if out.accepted and self.p("output_dir"):
             frames = Path(self.p("output_dir")) / "frames"
             frames.mkdir(parents=True, exist_ok=True)
             cv2.imwrite(str(frames / f"{det.name}.png"), img)  # the report's worst views are read back by name
         vis = self.session.picture(img, det, out)
         if vis is not None:
+            vis = self.guide.draw(vis, img.shape[1])
             self.pub_det.publish(Image(header=msg.header, **grey_to_image_fields(vis)))
         if out.accepted:
             self.publish_status()
@@ -423,6 +431,7 @@ class CalibrationNode(Node):
 
     def _srv_reset(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
         n = self.session.clear()
+        self.guide.reset()
         self.auto_done_at = -1
         with self._pending_cv:
             self._session_start = (self.frames_received, self.frames_dropped)

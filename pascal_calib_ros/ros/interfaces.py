@@ -24,7 +24,11 @@ CALIBRATION_NODE_INTERFACES = (
               '1 Hz and on every accepted view: views accepted / rejected with reasons (counted per kind), coverage '
               'per axis (x, y, size, skew), ready, frames received / examined / dropped / bad, last result; if '
               'frames were dropped while the detector was busy, the message and `frames_dropped_note` say how many '
-              'and what to do'),
+              'and what to do; with `guide:=true` the guide\'s `guide_sigma_px` (real, of the stored views), '
+              '`guide_goal_sigma_px`, `guide_done`, `guide_computing`, `guide_suggestion`, '
+              '`guide_predicted_sigma_px`, `guide_camera_T_target` (`[tx, ty, tz, qx, qy, qz, qw]`: the suggestion\'s '
+              'target frame in the camera optical frame, m), `guide_match`, `guide_matched`, `guide_hint`, '
+              '`guide_error`, `guide_update_s`; after a `~/suggest`, `suggest_s` (its time)'),
     Interface('~/examined_frames', 'pub', 'std_msgs/Header',
               "the header of each frame the detector has examined (reliable, transient local); `replay_node`'s "
               'lock-step mode waits for it'),
@@ -34,7 +38,10 @@ CALIBRATION_NODE_INTERFACES = (
               "reason in red), the footprints of the stored views (magenta: the convex hull of each view's edge "
               "points / corners), and a panel right of the frame (the image is wider than the camera's) with the X "
               '/ Y / size / skew coverage bars of `~/status` (red to yellow, green when full; a tick at half, the '
-              'readiness threshold), the view count and `READY` or what is missing; only drawn while someone '
+              'readiness threshold), the view count and `READY` or what is missing; with `guide:=true` also the '
+              "suggested view's outline (cyan, green when matched) and, at the bottom, `match 0.62 (need 0.85): "
+              "move the target left`, `sigma now 0.412 px, goal 0.1 px` and the next view in words (or `computing "
+              "the next view...`, `DONE: call ~/calibrate`); only drawn while someone "
               'subscribes (`ros2 run rqt_image_view rqt_image_view /pascal_calib/detections`)'),
     Interface('~/camera_info', 'pub', 'sensor_msgs/CameraInfo',
               'reliable + transient local (a late subscriber gets it); K, D and `distortion_model` (`plumb_bob`, '
@@ -65,6 +72,22 @@ CALIBRATION_NODE_INTERFACES = (
               "calibration, its transform: answers `verdict: HOLDS` or `verdict: CHANGED: <what> (p = ..); moved: fx "
               "+1.3 (+7.2 sigma)`, the views used, the projection shift (px, as `pascal-calib diff`) and how far X "
               'moved; the last answer in `~/status` (`verify`); see Export and verify'),
+    Interface('~/suggest', 'srv', 'std_srvs/Trigger',
+              'the next views from the stored ones (as `pascal-calib suggest`; needs 3 usable views): with '
+              '`hand_eye`, the next tool pose and the predicted projection and hand-eye sigma (`next: tool t=[x, y, '
+              'z] m q=[qx, qy, qz, qw] in base_link: predicted sigma .. px, hand-eye .. deg .. mm; now sigma .. px '
+              '(goal ..), hand-eye .. deg .. mm (goals ..) from N views; K ranked on ...`, or `done: the views '
+              'reach the goals; call ~/calibrate ...`) and publishes the ranked tool poses; without, the next '
+              "camera_T_target (the target's frame in the camera's) with its predicted sigma; refuses with the "
+              'reason (too few views, no robot poses, nothing inside the trust region) and publishes nothing then'),
+    Interface('~/suggested_tool_poses', 'pub', 'geometry_msgs/PoseArray',
+              'reliable + transient local; the tool poses `~/suggest` ranked, best first, in `robot_base_frame` '
+              '(the tool frame in the base, as the robot poses; eye to hand: the tool carrying the target)'),
+    Interface('~/suggested_tool_pose', 'pub', 'geometry_msgs/PoseStamped',
+              'reliable + transient local; the best of them'),
+    Interface('~/skip_suggestion', 'srv', 'std_srvs/Trigger',
+              '`guide:=true`: move on to the next suggested view (one the person cannot reach); answers it in '
+              'words (`next view 2/5: centre at (u, v) px, 0.45 m, tilt 40 deg about 315 deg, roll 0 deg`)'),
 )
 
 # ``mode:=stereo`` (ros/stereo_node.py)

@@ -129,6 +129,31 @@ PARAMS = (
     Param('arm_accuracy_length', 0.3,
           'metres over which that error changes (its correlation length)', float_range=(0.01, 100.0),
           modes=MONO),
+    Param('guide', False,
+          'guide a person holding the target (see Guided sessions): `~/detections` draws the next suggested view '
+          "(the target's outline projected with the current camera), the match score, one hint line and the "
+          'projection sigma against `goal_sigma_px`; with `collect:=auto` a view is stored only when the live '
+          'target matches the outline (overlap >= 0.85) and is still (`max_motion_px` auto: 2 px); after each stored '
+          'view the views are recalibrated and the next views ranked (off the image thread); DONE when the real '
+          'worst projection sigma over the image reaches the goal', modes=MONO),
+    Param('goal_sigma_px', 0.1,
+          'the accuracy asked for: the worst projection sigma over the whole image (px), as `pascal-calib suggest '
+          '--goal-sigma`; the guide and `~/suggest` say done when the recalibrated views reach it',
+          float_range=(1e-4, 100.0), modes=MONO),
+    Param('suggest_count', 5,
+          '`~/suggest` and the guide rank this many next views (best first)', int_range=(1, 50), modes=MONO),
+    Param('suggest_reach', 0.3,
+          "arm suggestions stay within this many metres of a visited tool pose (the package knows no arm's "
+          'kinematics), as `pascal-calib suggest --reach`', float_range=(0.001, 10.0), modes=MONO),
+    Param('suggest_max_turn', 120.0,
+          'arm suggestions turn the tool at most this many degrees from the nearest visited orientation '
+          '(`--max-turn`)', float_range=(0.1, 180.0), modes=MONO),
+    Param('goal_hand_eye_deg', 0.01,
+          'with `hand_eye`: `~/suggest` says done only when also the hand-eye rotation sigma is at most this '
+          '(degrees; `--goal-deg`)', float_range=(1e-5, 10.0), modes=MONO),
+    Param('goal_hand_eye_mm', 0.1,
+          'with `hand_eye`: and the hand-eye translation sigma at most this (mm; `--goal-mm`)',
+          float_range=(1e-4, 100.0), modes=MONO),
     Param('sync_slop', 0.02,
           'stereo: a left and a right frame form a shot when their header stamps differ by at most this many '
           'seconds (approximate time, as message_filters; 0: equal stamps, hardware-triggered cameras). Frames '
@@ -149,7 +174,8 @@ PARAMS = (
 )
 
 
-READ_ONLY = {"mode", "transport", "robot_pose_topic", "left_set_camera_info_service", "right_set_camera_info_service"}
+READ_ONLY = {"mode", "transport", "robot_pose_topic", "guide", "left_set_camera_info_service",
+             "right_set_camera_info_service"}
 
 
 def params_for(mode: str) -> tuple[Param, ...]:

@@ -55,6 +55,7 @@ def status_message(node: CalibrationNode) -> DiagnosticArray:
     if node.p("hand_eye"):
         kv["hand_eye"] = node.hand_eye_line
     kv["verify"] = node.verify_line
+    kv.update(node.guide.status())
     st.values = [KeyValue(key=k, value=str(v)) for k, v in kv.items()]
     return DiagnosticArray(header=node._header(), status=[st])
 

@@ -23,14 +23,18 @@ from .collector import ViewCollector
 from .overlay import draw_live_overlay
 
 MOTION_AUTO_PX = 0.5  # the stillness threshold of robot sessions when max_motion_px is -1 (auto)
+GUIDED_MOTION_AUTO_PX = 2.0  # a guided hand-held session (auto): still enough for a person holding the target
 
 
-def max_motion_of(value: float, collect: str, with_poses: bool) -> float:
+def max_motion_of(value: float, collect: str, with_poses: bool, guided: bool = False) -> float:
     """The stillness threshold in force: ``value`` when >= 0; -1 (auto): :data:`MOTION_AUTO_PX` for
-    robot sessions (robot poses, or ``collect="on_capture"``), else off (0)."""
+    robot sessions (robot poses, or ``collect="on_capture"``), :data:`GUIDED_MOTION_AUTO_PX` for a
+    guided hand-held session, else off (0)."""
     if value >= 0:
         return float(value)
-    return MOTION_AUTO_PX if (with_poses or collect == "on_capture") else 0.0
+    if with_poses or collect == "on_capture":
+        return MOTION_AUTO_PX
+    return GUIDED_MOTION_AUTO_PX if guided else 0.0
 
 
 @dataclass(frozen=True)
@@ -75,9 +79,11 @@ class LiveSession:
             self.collector.reject(f"bad frame: {reason}")
 
     def examine(self, det: Detection, stamp_ns: int, poses: PoseBuffer | None, pose_max_age: float,
-                received_at: float, drawing: bool) -> FrameOutcome:
+                received_at: float, drawing: bool, guide: tuple[bool, str] | None = None) -> FrameOutcome:
         """Apply the session's policy to one frame's detection (module docstring); ``drawing``: also
-        return what the live picture needs."""
+        return what the live picture needs. ``guide`` (a guided session, :mod:`.guided_live`): with
+        ``collect="auto"`` a usable, still frame is stored only when ``guide[0]`` (it matches the
+        suggestion; then whatever it resembles), else its line says ``guide[1]``."""
         verdict = self.gate.examine(det, stamp_ns, poses, pose_max_age)
         capture = self.captures.for_frame(received_at)
         answer: tuple[bool, str] | None = None
@@ -97,6 +103,14 @@ class LiveSession:
                 else:
                     col.reject(verdict.reason)
                     self.captures.note(capture, verdict.reason)
+            elif self.collect == "auto" and guide is not None:
+                if verdict.usable and guide[0]:
+                    accepted, why = col.offer(det, verdict.robot_pose, force=True)
+                    why = f"view {len(col.views) - 1} stored" if accepted else f"ok; not stored: {why}"
+                elif verdict.usable:
+                    why = f"ok; not stored: {guide[1]}"
+                else:
+                    col.reject(verdict.reason)
             elif self.collect == "auto":
                 if verdict.usable:
                     accepted, why = col.offer(det, verdict.robot_pose)

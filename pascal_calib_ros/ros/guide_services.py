@@ -1,0 +1,186 @@
+"""The calibration node's guide (issue 24): the person guide's hooks (``guide:=true``; the policy is
+:mod:`..session.guided_live`, the drawing :mod:`..session.guide_overlay`), ``~/skip_suggestion``,
+and ``~/suggest`` for a script: with ``hand_eye`` the next tool poses (latched
+``~/suggested_tool_poses``, geometry_msgs/PoseArray in ``robot_base_frame``, ranked best first, and
+``~/suggested_tool_pose``, the best, PoseStamped), without it the next camera_T_target, both from
+:mod:`..workflows.suggest` on the node's stored views (and their tool poses)."""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from geometry_msgs.msg import Pose, PoseArray, PoseStamped
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from std_srvs.srv import Trigger
+
+from ..calibrate.options import CalibrationOptions
+from ..detect.detection import Detection
+from ..errors import PascalCalibError
+from ..session.guide_overlay import draw_guide
+from ..session.guided_live import GuidedLive, GuideView
+from ..workflows.suggest import SuggestOptions, suggest_for_arm, suggest_for_person
+
+if TYPE_CHECKING:
+    from .calibration_node import CalibrationNode
+
+
+def _pose_msg(doc: dict[str, list[float]]) -> Pose:
+    """geometry_msgs/Pose of NEXT.yaml's ``{translation, rotation [qx, qy, qz, qw]}``."""
+    p = Pose()
+    p.position.x, p.position.y, p.position.z = (float(v) for v in doc["translation"])
+    p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w = (float(v) for v in doc["rotation"])
+    return p
+
+
+def _vec(v: list[float], digits: int = 4) -> str:
+    return "[" + ", ".join(f"{x:.{digits}f}" for x in v) + "]"
+
+
+def arm_answer(doc: dict[str, Any], topic: str) -> str:
+    """``~/suggest``'s answer for an arm: the best tool pose and the figures now and predicted."""
+    now = (f"now sigma {doc['projection_sigma_px']:.4f} px (goal {doc['goal_sigma_px']:g}), hand-eye "
+           f"{doc['hand_eye_sigma_deg']:.5f} deg {doc['hand_eye_sigma_mm']:.4f} mm (goals "
+           f"{doc['goal_hand_eye_sigma_deg']:g} deg {doc['goal_hand_eye_sigma_mm']:g} mm) from {doc['views_used']} "
+           "views")
+    head = "done: the views reach the goals; call ~/calibrate" if doc["done"] else "next"
+    if not doc["suggestions"]:
+        return f"{head}; {now}"
+    s = doc["suggestions"][0]
+    return (f"{head}: tool t={_vec(s['tool']['translation'])} m q={_vec(s['tool']['rotation'], 6)} in "
+            f"{doc['frame_id']}: predicted sigma {s['predicted_sigma_px']:.4f} px, hand-eye "
+            f"{s['predicted_hand_eye_sigma_deg']:.5f} deg {s['predicted_hand_eye_sigma_mm']:.4f} mm; {now}; "
+            f"{len(doc['suggestions'])} ranked on {topic}")
+
+
+def person_answer(doc: dict[str, Any]) -> str:
+    """``~/suggest``'s answer without an arm: the best camera_T_target and the figures."""
+    now = (f"now sigma {doc['projection_sigma_px']:.4f} px (goal {doc['goal_sigma_px']:g}) from "
+           f"{doc['views_used']} views")
+    head = "done: the views reach the goal; call ~/calibrate" if doc["done"] else "next"
+    s = doc["suggestions"][0]
+    p = s["placement"]
+    return (f"{head}: camera_T_target t={_vec(s['camera_T_target']['translation'])} m "
+            f"q={_vec(s['camera_T_target']['rotation'], 6)} (centre at ({p['pixel'][0]:.0f}, {p['pixel'][1]:.0f}) "
+            f"px, {p['distance_m']:.2f} m, tilt {p['tilt_deg']:.0f} deg): predicted sigma "
+            f"{s['predicted_sigma_px']:.4f} px; {now}")
+
+
+class NodeGuide:
+    """The guide's interfaces on ``node`` (module docstring); the person guide only with ``guide``."""
+
+    def __init__(self, node: CalibrationNode, services: Any, latched: Any) -> None:
+        """``services``: the callback group of the node's quick services; ``latched``: its reliable,
+        transient-local QoS."""
+        self.node = node
+        self.live: GuidedLive | None = None
+        if node.p("guide"):
+            opts = CalibrationOptions(method=node.method, distortion=str(node.p("distortion_model")),
+                                      zero_skew=bool(node.p("zero_skew")))
+            self.live = GuidedLive(node.target, opts, float(node.p("goal_sigma_px")), int(node.p("suggest_count")))
+        self.pub_poses = node.create_publisher(PoseArray, "~/suggested_tool_poses", latched)
+        self.pub_pose = node.create_publisher(PoseStamped, "~/suggested_tool_pose", latched)
+        self.last_seconds = float("nan")
+        node.create_service(Trigger, "~/suggest", self._srv_suggest, callback_group=MutuallyExclusiveCallbackGroup())
+        node.create_service(Trigger, "~/skip_suggestion", self._srv_skip, callback_group=services)
+
+    # -- the person guide's hooks (the detector thread) ------------------------------------
+    def examine(self, det: Detection) -> tuple[bool, str] | None:
+        """The guide's verdict for :meth:`..session.live.LiveSession.examine` (None: no guide)."""
+        if self.live is None:
+            return None
+        v = self.live.examine(det)
+        return v.store, v.line
+
+    def stored(self, views: list[Detection]) -> None:
+        if self.live is not None:
+            self.live.stored(views)
+
+    def draw(self, picture: np.ndarray, width: int) -> np.ndarray:
+        return picture if self.live is None else draw_guide(picture, self.live.view(), width)
+
+    def view(self) -> GuideView | None:
+        return None if self.live is None else self.live.view()
+
+    def reset(self) -> None:
+        if self.live is not None:
+            self.live.reset()
+
+    def set_goal(self, goal: float) -> None:
+        if self.live is not None:
+            self.live.set_goal(goal)
+
+    def status(self) -> dict[str, Any]:
+        """The guide's lines of ``~/status`` (empty without a guide)."""
+        v = self.view()
+        out: dict[str, Any] = {}
+        if v is not None:
+            out = {"guide_sigma_px": round(v.sigma_px, 5), "guide_goal_sigma_px": v.goal_sigma_px,
+                   "guide_done": v.done, "guide_computing": v.computing, "guide_suggestion": v.suggestion,
+                   "guide_predicted_sigma_px": round(v.predicted_sigma_px, 5),
+                   "guide_camera_T_target": _vec([*v.pose.translation, *v.pose.quat], 6) if v.pose else "",
+                   "guide_match": round(v.overlap, 3),
+                   "guide_matched": v.matched, "guide_hint": v.hint, "guide_error": v.error,
+                   "guide_update_s": round(v.update_seconds, 3)}
+        if np.isfinite(self.last_seconds):
+            out["suggest_s"] = round(self.last_seconds, 3)
+        return out
+
+    # -- services ---------------------------------------------------------------------------
+    def _srv_skip(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
+        if self.live is None:
+            resp.success, resp.message = False, "no guide: start the node with guide:=true"
+            return resp
+        now = self.live.skip()
+        resp.success = bool(now)
+        resp.message = f"next view {now}" if now else "no suggestion yet: show the target to the camera first"
+        self.node.publish_status()
+        return resp
+
+    def _srv_suggest(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
+        t0 = time.perf_counter()
+        try:
+            resp.success, resp.message = True, self.suggest()
+        except PascalCalibError as e:
+            resp.success, resp.message = False, f"no suggestion: {e}"
+        except Exception as e:  # a numerical failure must never take the node down
+            self.node.get_logger().error(f"suggest crashed: {type(e).__name__}: {e}")
+            resp.success, resp.message = False, f"no suggestion: {type(e).__name__}: {e}"
+        self.last_seconds = time.perf_counter() - t0
+        self.node._log(f"suggest ({self.last_seconds:.2f} s): {resp.message}", resp.success)
+        return resp
+
+    def options(self) -> SuggestOptions:
+        p = self.node.p
+        return SuggestOptions(n=int(p("suggest_count")), goal_sigma_px=float(p("goal_sigma_px")),
+                              distortion=str(p("distortion_model")), mode=str(p("hand_eye")),
+                              reach=float(p("suggest_reach")), max_turn=float(p("suggest_max_turn")),
+                              goal_deg=float(p("goal_hand_eye_deg")), goal_mm=float(p("goal_hand_eye_mm")))
+
+    def suggest(self) -> str:
+        """The answer of ``~/suggest``; a :class:`~..errors.PascalCalibError` says why there is none."""
+        node, opt = self.node, self.options()
+        snap = node.session.snapshot()
+        if not opt.mode:
+            doc = suggest_for_person(snap.views, node.target, opt)
+            return person_answer(doc)
+        if node.robot is None:
+            raise PascalCalibError("hand_eye is set but there are no robot poses: set robot_pose_topic")
+        if sum(p is not None for p in snap.robot_poses) == 0:
+            raise PascalCalibError(f"none of the {len(snap.views)} stored view(s) has a robot pose (poses received "
+                                   f"on {node.robot.resolved}: {node.robot.poses.received}); capture views at "
+                                   "three or more arm poses first")
+        base, tool = str(node.p("robot_base_frame")), str(node.p("robot_tool_frame"))
+        doc = suggest_for_arm(snap.views, snap.robot_poses, node.target, opt, (base, tool))
+        if not doc["suggestions"] and not doc["done"]:
+            raise PascalCalibError(f"no candidate view inside the trust region (suggest_reach {opt.reach:g} m, "
+                                   f"suggest_max_turn {opt.max_turn:g} deg around the visited tool poses); widen it"
+                                   f" or capture views at more varied poses; {arm_answer(doc, '')}")
+        if doc["suggestions"]:
+            header = node._header()
+            header.frame_id = base
+            arr = PoseArray(header=header, poses=[_pose_msg(s["tool"]) for s in doc["suggestions"]])
+            self.pub_poses.publish(arr)
+            self.pub_pose.publish(PoseStamped(header=header, pose=arr.poses[0]))
+        return arm_answer(doc, node.resolve_topic_name("~/suggested_tool_poses"))
