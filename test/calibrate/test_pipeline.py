@@ -151,9 +151,15 @@ def test_zhang_without_refinement_is_opencv_on_the_same_corners(checkerboard_ses
     res = calibrate(dets, target, CalibrationOptions(method="zhang", refine=False))
     obj = np.c_[target.checkerboard.corner_points(), np.zeros(70)].astype(np.float32)  # type: ignore[union-attr]
     img = [d.corners.astype(np.float32).reshape(-1, 1, 2) for d in dets if d.corners is not None]
-    rms, K, D, _, _ = cv2.calibrateCamera([obj] * len(img), img, (800, 600), None, None)
-    # OpenCV's own threads make it repeat itself only to about 1e-13 (the pipeline runs it in one thread)
-    assert np.allclose(res.K, K, rtol=1e-9, atol=0) and np.allclose(res.D, D.ravel(), rtol=1e-9, atol=1e-11)
+    # in one thread, as the pipeline runs it: with OpenCV's threads its last bits differ from run to
+    # run, and on a loaded machine the iterations carry that to 1e-9 of the distortion terms
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        rms, K, D, _, _ = cv2.calibrateCamera([obj] * len(img), img, (800, 600), None, None)
+    finally:
+        cv2.setNumThreads(threads)
+    assert np.allclose(res.K, K, rtol=1e-12, atol=0) and np.allclose(res.D, D.ravel(), rtol=1e-12, atol=1e-14)
     assert res.rms == pytest.approx(rms, rel=1e-9) and res.refinement is None and assess(res).projection is None
     assert "OpenCV" in res.std_model
 

@@ -91,13 +91,16 @@ def test_replayed_stereo_session_gives_the_cli_result_and_commits_to_each_driver
                                            "left_set_camera_info_service": "/head/left/set_camera_info",
                                            "right_set_camera_info_service": "/head/right/set_camera_info"},
                       dom, tmp_path / "cal.log")
-    rep = NodeProcess("replay_node", {"left_source": str(rig_dir / "left"), "right_source": str(rig_dir / "right"),
-                                      "exit_when_done": True}, dom, tmp_path / "rep.log")
     client = RosClient(dom)
+    rep = None
     try:
         status = status_subscription(client)
         pictures: list = []
         client.node.create_subscription(Image, "/pascal_calib/detections", pictures.append, 10)
+        # the node draws ~/detections only for a subscriber it knows: connected before the replay starts
+        assert client.spin_until(lambda: client.node.count_publishers("/pascal_calib/detections") > 0, 30), cal.log()
+        rep = NodeProcess("replay_node", {"left_source": str(rig_dir / "left"), "right_source": str(rig_dir / "right"),
+                                          "exit_when_done": True}, dom, tmp_path / "rep.log")
         assert client.spin_until(lambda: rep.proc.poll() is not None, 90), rep.log()
         assert rep.wait(1) == 0, rep.log()
         assert "replaying 7 stereo shot(s)" in rep.log() and "14 examined by the calibration node" in rep.log()
@@ -128,7 +131,8 @@ def test_replayed_stereo_session_gives_the_cli_result_and_commits_to_each_driver
         assert not r.success and "read-only camera" in r.message and "only one camera holds" in r.message, r.message
     finally:
         client.close()
-        rep.stop()
+        if rep is not None:
+            rep.stop()
         assert cal.stop() == 0, cal.log()
     assert cli.wait(240) == 0, cli.stdout.read() if cli.stdout else ""
 
