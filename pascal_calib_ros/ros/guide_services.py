@@ -18,8 +18,11 @@ from std_srvs.srv import Trigger
 from ..calibrate.options import CalibrationOptions
 from ..detect.detection import Detection
 from ..errors import PascalCalibError
+from ..geometry.camera import Camera
+from ..io.calibration_files import read_calibration_file
 from ..session.guide_overlay import draw_guide
 from ..session.guided_live import GuidedLive, GuideView
+from ..workflows.outputs import calibration_file_path
 from ..workflows.suggest import SuggestOptions, suggest_for_arm, suggest_for_person
 
 if TYPE_CHECKING:
@@ -67,6 +70,23 @@ def person_answer(doc: dict[str, Any]) -> str:
             f"{s['predicted_sigma_px']:.4f} px; {now}")
 
 
+def previous_camera(node: CalibrationNode) -> Camera | None:
+    """The camera of the node's calibration file (``calibration_file``, else where ``~/calibrate``
+    writes it), if one is there: the guide draws its first views with it instead of a nominal
+    camera (focal = image width). An unreadable file is logged and left alone."""
+    path = calibration_file_path(str(node.p("camera_name")), str(node.p("output_dir")), str(node.p("calibration_file")))
+    if not path.exists():
+        return None
+    try:
+        cam = read_calibration_file(path).camera
+    except PascalCalibError as e:
+        node.get_logger().warning(f"guide: {e}; the first views are drawn with a nominal camera")
+        return None
+    node.get_logger().info(f"guide: the first views are drawn with the camera of {path} "
+                           f"({cam.width}x{cam.height}, fx {cam.K[0, 0]:.1f} px)")
+    return cam
+
+
 class NodeGuide:
     """The guide's interfaces on ``node`` (module docstring); the person guide only with ``guide``."""
 
@@ -78,7 +98,8 @@ class NodeGuide:
         if node.p("guide"):
             opts = CalibrationOptions(method=node.method, distortion=str(node.p("distortion_model")),
                                       zero_skew=bool(node.p("zero_skew")))
-            self.live = GuidedLive(node.target, opts, float(node.p("goal_sigma_px")), int(node.p("suggest_count")))
+            self.live = GuidedLive(node.target, opts, float(node.p("goal_sigma_px")), int(node.p("suggest_count")),
+                                   camera_guess=previous_camera(node))
         self.pub_poses = node.create_publisher(PoseArray, "~/suggested_tool_poses", latched)
         self.pub_pose = node.create_publisher(PoseStamped, "~/suggested_tool_pose", latched)
         self.last_seconds = float("nan")

@@ -264,3 +264,38 @@ def test_person_guide_stores_what_matches_and_skip_moves_on(tmp_path: Path) -> N
     finally:
         client.close()
         assert cal.stop() == 0, cal.log()
+
+
+def test_person_guide_draws_its_first_views_with_the_calibration_file(tmp_path: Path) -> None:
+    """With a calibration file where the node keeps it, the bootstrap suggestions are placed with
+    that camera, not the nominal one (focal = image width): the suggested pose is the one the
+    file's camera gives."""
+    from pascal_calib_ros.analysis.candidates import bootstrap_placements
+    from pascal_calib_ros.geometry.camera import Camera
+    from pascal_calib_ros.io.camera_yaml import CameraInfoData, write_camera_yaml
+
+    target = resolve_target("ring_a4")
+    cam = SessionSpec(width=W, height=H, k1=-0.1, focal=400.0).camera()
+    path = write_camera_yaml(tmp_path / "cam.yaml", CameraInfoData(W, H, "cam", cam.K, cam.D, cam.model))
+    nominal = Camera.from_params(float(W), float(W), W / 2.0, H / 2.0, width=W, height=H)
+    expected = [place(target, c, bootstrap_placements(c, target)[0]) for c in (cam, nominal)]
+    assert not np.allclose(expected[0].translation, expected[1].translation, atol=1e-3)  # the test can tell
+    dom = next_domain_id()
+    cal = NodeProcess("calibration_node", {"calibration_file": str(path), "guide": True, "target": "ring_a4"},
+                      dom, tmp_path / "cal.log")
+    client = RosClient(dom)
+    try:
+        out = Publisher(client, with_pose=False)
+        status = status_subscription(client)
+        far = place(target, cam, Placement((0.82 * W, 0.78 * H), 1.1, 10.0, 0.0, 0.0))  # matches no suggestion
+        out.image = render_view(target, cam, Pose(far.R, far.translation), SensorModel(seed=3)).image
+        assert client.spin_until(lambda: _suggested(latest_status(status)) is not None
+                                 and int(latest_status(status)["frames_examined"]) >= 2, 30), cal.log()
+        assert latest_status(status)["views_accepted"] == "0"
+        got = _suggested(latest_status(status))
+        assert got is not None
+        assert np.allclose(got.translation, expected[0].translation, atol=1e-4), (got.translation, expected)
+        assert f"drawn with the camera of {path}" in cal.log()
+    finally:
+        client.close()
+        assert cal.stop() == 0, cal.log()
