@@ -152,6 +152,11 @@ class CalibrationNode(Node):
     def method(self) -> str:
         return str(self.p("method") or self.target.default_method())
 
+    def calibration_path(self) -> Path:
+        """Where this node's camera YAML is written and read (:func:`calibration_file_path`)."""
+        return calibration_file_path(str(self.p("camera_name")), str(self.p("output_dir")),
+                                     str(self.p("calibration_file")))
+
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         changes = {p.name: p.value for p in params}
         problems = validate_parameters(changes, self.values())
@@ -358,8 +363,7 @@ class CalibrationNode(Node):
     def _write_outputs(self, a: Any, views: list[Detection], hand_eye: Any = None) -> Path:
         """The camera YAML; with ``output_dir`` also ``calibration.json`` and the report."""
         name, out_dir = str(self.p("camera_name")), str(self.p("output_dir"))
-        path = write_camera_file(a.result, calibration_file_path(name, out_dir, str(self.p("calibration_file"))),
-                                 name)
+        path = write_camera_file(a.result, self.calibration_path(), name)
         write_calibration_record(a, path, name)  # CAM.calibration.json: what ~/verify and export need
         if out_dir:
             frames = Path(out_dir) / "frames"
@@ -423,8 +427,7 @@ class CalibrationNode(Node):
         ``.calibration.json`` beside it for the covariance)."""
         if self.result is not None:
             return reference_of_result(self.result)
-        name = str(self.p("camera_name"))
-        path = calibration_file_path(name, str(self.p("output_dir")), str(self.p("calibration_file")))
+        path = self.calibration_path()
         if not path.exists():
             raise PascalCalibError(f"no calibration in this session and no {path}: call ~/calibrate first")
         return reference_of_file(read_calibration_file(path))

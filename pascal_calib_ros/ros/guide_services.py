@@ -22,7 +22,6 @@ from ..geometry.camera import Camera
 from ..io.calibration_files import read_calibration_file
 from ..session.guide_overlay import draw_guide
 from ..session.guided_live import GuidedLive, GuideView
-from ..workflows.outputs import calibration_file_path
 from ..workflows.suggest import SuggestOptions, suggest_for_arm, suggest_for_person
 
 if TYPE_CHECKING:
@@ -74,7 +73,7 @@ def previous_camera(node: CalibrationNode) -> Camera | None:
     """The camera of the node's calibration file (``calibration_file``, else where ``~/calibrate``
     writes it), if one is there: the guide draws its first views with it instead of a nominal
     camera (focal = image width). An unreadable file is logged and left alone."""
-    path = calibration_file_path(str(node.p("camera_name")), str(node.p("output_dir")), str(node.p("calibration_file")))
+    path = node.calibration_path()
     if not path.exists():
         return None
     try:
