@@ -81,14 +81,15 @@ def easy_handeye_tools(start: Transform, angle_deg: float = 25.0, translation: f
 
 class ArmCell:
     """The simulated cell: true X and Y, the camera, the arm's noise; renders the view of a tool
-    pose and reports the pose as the arm would."""
+    pose and reports the pose as the arm would. The image noise differs from session to session
+    (seeded by the session's seed and the shot), as the arm's noise does."""
 
     def __init__(self, target: Target, spec: ArmSpec, seed: int):
         self.target, self.spec = target, spec
         self.X, self.Y = DEFAULT_HAND_EYE[MODE], DEFAULT_TARGET[MODE]
         self.camera = spec.camera()
         self.rng = np.random.default_rng([seed, 77])
-        self.shots = 0
+        self.seed, self.shots = seed, 0
 
     def tool_of(self, camera_T_target: Transform) -> Transform:
         return self.Y @ camera_T_target.inverse() @ self.X.inverse()
@@ -99,7 +100,7 @@ class ArmCell:
         self.shots += 1
         img = render_view(self.target, self.camera, Pose(C.R, C.translation),
                           SensorModel(blur_sigma=self.spec.blur, noise_sigma=self.spec.sensor_noise,
-                                      gamma=self.spec.gamma, seed=1000 * self.shots + 7)).image
+                                      gamma=self.spec.gamma, seed=1000 * self.seed + self.shots)).image
         noise = Transform.from_rotvec(self.rng.normal(0, np.radians(self.spec.noise_deg), 3),
                                       self.rng.normal(0, self.spec.noise_mm / 1000, 3))
         return detect_target(img, self.target, name=f"v{self.shots:02d}.png"), tool @ noise

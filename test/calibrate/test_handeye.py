@@ -26,7 +26,7 @@ from pascal_calib_ros.calibrate.handeye import (
     hand_eye_closed_form,
     park_martin,
 )
-from pascal_calib_ros.calibrate.handeye.closed_form import ring_closed_form
+from pascal_calib_ros.calibrate.handeye.closed_form import chain_disagreement, motion_pairs, ring_closed_form
 from pascal_calib_ros.calibrate.result import CalibrationError
 from pascal_calib_ros.detect.detection import Detection
 from pascal_calib_ros.detect.target_detector import detect_target
@@ -66,6 +66,26 @@ def test_park_martin_is_exact_on_noise_free_motions() -> None:
     Xr, Yr = ring_closed_form(M, np.array([c.translation for c in C]), np.array([c.R[:, 2] for c in C]))
     np.testing.assert_allclose(Xr.matrix, X.matrix, atol=1e-9)
     np.testing.assert_allclose(Yr.translation, Y.translation, atol=1e-9)
+
+
+def test_pairs_and_disagreements_are_the_transform_chains() -> None:
+    """The array forms (all pairs at once, all views at once) give what the Transform products give."""
+    X, Y, M, C = _loop(6, 3)
+    m = motion_pairs(M, C)
+    pairs = [(i, j) for i in range(6) for j in range(i + 1, 6)]
+    np.testing.assert_allclose(m.RA, [(M[j].inverse() @ M[i]).R for i, j in pairs], atol=1e-12)
+    np.testing.assert_allclose(m.beta, [(C[j] @ C[i].inverse()).rotvec for i, j in pairs], atol=1e-12)
+    np.testing.assert_allclose(m.tB, [(C[j] @ C[i].inverse()).translation for i, j in pairs], atol=1e-12)
+    rng = np.random.default_rng(4)
+    Mn = [mi @ Transform.from_rotvec(rng.normal(0, 1e-3, 3), rng.normal(0, 1e-3, 3)) for mi in M]
+    for mode, Mm in (("eye_in_hand", Mn), ("eye_to_hand", Mn)):
+        mm, deg = chain_disagreement(Mm, X, Y, C, mode)
+        for k in range(6):
+            d = (Mm[k].inverse() @ Y @ C[k].inverse() @ X.inverse() if mode == "eye_in_hand"
+                 else Mm[k] @ X @ C[k] @ Y.inverse())
+            assert mm[k] == pytest.approx(1000 * np.linalg.norm(d.translation), rel=1e-9)
+            assert deg[k] == pytest.approx(d.angle_deg(), rel=1e-9)
+        assert np.all(deg > 0.01)  # the perturbation is seen
 
 
 def _dummy(n: int) -> list[Detection]:

@@ -8,7 +8,7 @@ translations, a single rotation axis) are refused."""
 
 from __future__ import annotations
 
-import itertools
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -23,15 +23,41 @@ from .options import (
 )
 
 
+@dataclass(frozen=True)
+class Motions:
+    """Motion pairs A_k X = X B_k as arrays over the pairs k: the rotation vectors alpha_k of A_k and
+    beta_k of B_k (P, 3), A_k's rotation matrices (P, 3, 3), the translations of A_k and B_k (P, 3)."""
+
+    alpha: np.ndarray
+    beta: np.ndarray
+    RA: np.ndarray
+    tA: np.ndarray
+    tB: np.ndarray
+
+    @staticmethod
+    def of(A: list[Transform], B: list[Transform]) -> Motions:
+        def arr(vals: list[np.ndarray], *shape: int) -> np.ndarray:
+            return np.array(vals, float).reshape(-1, *shape)
+
+        return Motions(arr([a.rotvec for a in A], 3), arr([b.rotvec for b in B], 3), arr([a.R for a in A], 3, 3),
+                       arr([a.translation for a in A], 3), arr([b.translation for b in B], 3))
+
+
 def park_martin(A: list[Transform], B: list[Transform]) -> Transform:
-    """X with A_k X = X B_k in the least-squares sense of Park & Martin (IEEE TRA 1994): the
-    rotation from the rotation vectors (R_X = (M^T M)^-1/2 M^T, M = sum beta alpha^T), then the
-    translation by linear least squares. Needs two motions with non-parallel rotation axes."""
+    """X with A_k X = X B_k in the least-squares sense of Park & Martin (IEEE TRA 1994)
+    (:func:`park_martin_motions`)."""
     if len(A) != len(B) or len(A) < 2:
         raise HandEyeError("Park-Martin needs at least two motion pairs")
-    alpha = np.array([a.rotvec for a in A])
-    beta = np.array([b.rotvec for b in B])
-    M = beta.T @ alpha  # sum_k beta_k alpha_k^T
+    return park_martin_motions(Motions.of(A, B))
+
+
+def park_martin_motions(m: Motions) -> Transform:
+    """Park & Martin's X: the rotation from the rotation vectors (R_X = (M^T M)^-1/2 M^T,
+    M = sum beta alpha^T), then the translation by linear least squares on (R_A - I) t_X =
+    R_X t_B - t_A. Needs two motions with non-parallel rotation axes."""
+    if len(m.alpha) < 2:
+        raise HandEyeError("Park-Martin needs at least two motion pairs")
+    M = m.beta.T @ m.alpha  # sum_k beta_k alpha_k^T
     MtM = M.T @ M
     w, V = np.linalg.eigh(MtM)
     if w[0] <= 1e-12 * max(w[-1], 1e-300):
@@ -40,10 +66,14 @@ def park_martin(A: list[Transform], B: list[Transform]) -> Transform:
     RX = V @ np.diag(1 / np.sqrt(w)) @ V.T @ M.T
     U, _, Vt = np.linalg.svd(RX)  # remove rounding
     RX = U @ np.diag([1, 1, np.linalg.det(U @ Vt)]) @ Vt
-    C = np.concatenate([a.R - np.eye(3) for a in A])
-    d = np.concatenate([RX @ b.translation - a.translation for a, b in zip(A, B, strict=True)])
+    C = (m.RA - np.eye(3)).reshape(-1, 3)
+    d = (m.tB @ RX.T - m.tA).reshape(-1)
     tX = np.linalg.lstsq(C, d, rcond=None)[0]
     return Transform.from_rt(RX, tX)
+
+
+def _stack(T: list[Transform]) -> tuple[Rotation, np.ndarray]:
+    return Rotation.concatenate([t.rotation for t in T]), np.array([t.translation for t in T]).reshape(-1, 3)
 
 
 def chain_pose(robot_pose: Transform, mode: str) -> Transform:
@@ -51,13 +81,15 @@ def chain_pose(robot_pose: Transform, mode: str) -> Transform:
     return robot_pose if mode == "eye_in_hand" else robot_pose.inverse()
 
 
-def motion_pairs(M: list[Transform], C: list[Transform]) -> tuple[list[Transform], list[Transform]]:
-    """(A, B) over all view pairs i < j: A = M_j^-1 M_i, B = C_j C_i^-1 (A X = X B)."""
-    A, B = [], []
-    for i, j in itertools.combinations(range(len(M)), 2):
-        A.append(M[j].inverse() @ M[i])
-        B.append(C[j] @ C[i].inverse())
-    return A, B
+def motion_pairs(M: list[Transform], C: list[Transform]) -> Motions:
+    """The motions over all view pairs i < j: A = M_j^-1 M_i, B = C_j C_i^-1 (A X = X B), as arrays."""
+    i, j = np.triu_indices(len(M), 1)
+    RM, tM = _stack(M)
+    RC, tC = _stack(C)
+    RA = RM[j].inv() * RM[i]
+    RB = RC[j] * RC[i].inv()
+    return Motions(RA.as_rotvec().reshape(-1, 3), RB.as_rotvec().reshape(-1, 3), RA.as_matrix().reshape(-1, 3, 3),
+                   RM[j].inv().apply(tM[i] - tM[j]).reshape(-1, 3), (tC[j] - RB.apply(tC[i])).reshape(-1, 3))
 
 
 def target_from_chain(M: list[Transform], X: Transform, C: list[Transform]) -> Transform:
@@ -69,8 +101,7 @@ def target_from_chain(M: list[Transform], X: Transform, C: list[Transform]) -> T
 
 def hand_eye_closed_form(M: list[Transform], C: list[Transform]) -> tuple[Transform, Transform]:
     """(X, Y) from chain poses and full camera poses: Park-Martin over all pairs, Y averaged."""
-    A, B = motion_pairs(M, C)
-    X = park_martin(A, B)
+    X = park_martin_motions(motion_pairs(M, C))
     return X, target_from_chain(M, X, C)
 
 
@@ -138,18 +169,17 @@ def check_robot_poses(poses: list[Transform], mode: str) -> None:
     for k, p in enumerate(poses):
         if not np.all(np.isfinite(p.matrix)):
             raise HandEyeError(f"robot pose {k} is not finite")
-    M = [chain_pose(p, mode) for p in poses]
-    axes = []
-    for i, j in itertools.combinations(range(len(M)), 2):
-        rv = (M[j].inverse() @ M[i]).rotvec
-        ang = float(np.linalg.norm(rv))
-        if np.degrees(ang) >= MIN_MOTION_DEG:
-            axes.append(rv / ang)
-    if not axes:
+    RM, _ = _stack([chain_pose(p, mode) for p in poses])
+    i, j = np.triu_indices(len(poses), 1)
+    rv = (RM[j].inv() * RM[i]).as_rotvec().reshape(-1, 3)
+    ang = np.linalg.norm(rv, axis=1)
+    moved = np.degrees(ang) >= MIN_MOTION_DEG
+    axes = rv[moved] / ang[moved, None]
+    if not len(axes):
         raise HandEyeError(f"the robot poses differ by pure translations (no relative rotation above "
                            f"{MIN_MOTION_DEG:g} deg): the hand-eye rotation is undetermined; rotate the tool about "
                            "at least two different axes between views")
-    a = np.array(axes)
+    a = axes
     spread = float(np.max(np.linalg.norm(np.cross(a[:, None, :], a[None, :, :]), axis=2)))
     if np.degrees(np.arcsin(min(spread, 1.0))) < MIN_AXIS_SPREAD_DEG:
         raise HandEyeError(f"all robot motions rotate about a single axis (axes within {MIN_AXIS_SPREAD_DEG:g} deg "
@@ -159,13 +189,26 @@ def check_robot_poses(poses: list[Transform], mode: str) -> None:
 
 def chain_disagreement(M: list[Transform], X: Transform, Y: Transform, C: list[Transform], mode: str
                        ) -> tuple[np.ndarray, np.ndarray]:
-    """Per view (mm, deg) of G_i^-1 G'_i: the measured robot pose against the one the images imply."""
-    mm, deg = [], []
-    for m, c in zip(M, C, strict=True):
-        d = m.inverse() @ Y @ c.inverse() @ X.inverse() if mode == "eye_in_hand" else m @ X @ c @ Y.inverse()
-        mm.append(1000 * float(np.linalg.norm(d.translation)))
-        deg.append(d.angle_deg())
-    return np.array(mm), np.array(deg)
+    """Per view (mm, deg) of G_i^-1 G'_i: the measured robot pose against the one the images imply
+    (eye in hand M^-1 Y C^-1 X^-1, eye to hand M X C Y^-1)."""
+    if not M:
+        return np.zeros(0), np.zeros(0)
+    RM, tM = _stack(M)
+    RC, tC = _stack(C)
+    if mode == "eye_in_hand":
+        R1, t1 = RM.inv() * Y.rotation, RM.inv().apply(Y.translation - tM)
+        R2 = R1 * RC.inv()
+        t2 = t1 - R2.apply(tC)
+        t3 = t2 - (R2 * X.rotation.inv()).apply(X.translation)
+        R3 = R2 * X.rotation.inv()
+    else:
+        R1, t1 = RM * X.rotation, RM.apply(X.translation) + tM
+        R2, t2 = R1 * RC, R1.apply(tC) + t1
+        R3 = R2 * Y.rotation.inv()
+        t3 = t2 - R3.apply(Y.translation)
+    mm = 1000 * np.linalg.norm(np.asarray(t3).reshape(-1, 3), axis=1)
+    deg = np.degrees(np.linalg.norm(R3.as_rotvec().reshape(-1, 3), axis=1))
+    return mm, deg
 
 
 def complete_ring_poses(M: list[Transform], X: Transform, Y: Transform, C: list[Transform]) -> list[Transform]:
