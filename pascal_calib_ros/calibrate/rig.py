@@ -37,7 +37,7 @@ from ..geometry.transform import Transform
 from ..targets import Target
 from .covariance import row_variances, sandwich_covariance
 from .handeye.labelling import relabelled, target_symmetries
-from .handeye.view_poses import camera_pose, polished_pose
+from .handeye.view_poses import camera_pose, polished_pose, refined_poses
 from .lm import LMResult, levenberg_marquardt
 from .observations import ViewData, observations
 from .options import CalibrationOptions
@@ -164,19 +164,22 @@ def _own_calibrations(dets: list[list[Detection]], target: Target, opt: Calibrat
 
 def _posed_views(dets: list[list[Detection]], own: list[CalibrationResult], target: Target, opt: CalibrationOptions,
                  origin: tuple[float, float]) -> tuple[dict[Key, ViewData], dict[Key, Transform], dict[Key, str]]:
-    """Observations and pose (with the camera's own calibration) of every view the camera used."""
+    """Observations and pose (with the camera's own calibration: its refinement's, :func:`refined_poses`)
+    of every view the camera used."""
     views: dict[Key, ViewData] = {}
     posed: dict[Key, Transform] = {}
     reasons: dict[Key, str] = {}
     for c, res in enumerate(own):
         cam = res.camera()
+        known = refined_poses(res)
         for s, rep in enumerate(res.views):
             if not rep.used:
                 reasons[(c, s)] = rep.reason or "not used"
                 continue
             vd = observations(dets[c][s], target, origin, opt)
             try:
-                posed[(c, s)] = polished_pose(vd, camera_pose(dets[c][s], target, cam, origin), cam, opt, 6)
+                posed[(c, s)] = known[s] if s in known else \
+                    polished_pose(vd, camera_pose(dets[c][s], target, cam, origin), cam, opt, 6)
             except (CircularPointError, np.linalg.LinAlgError, ValueError) as e:
                 reasons[(c, s)] = f"pose with the calibrated camera: {e}"
                 continue

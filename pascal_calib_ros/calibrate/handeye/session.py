@@ -80,7 +80,7 @@ from .labelling import label_consistently, target_symmetries
 from .options import HAND_EYE_MODES, MIN_VIEWS, HandEyeError, HandEyeOptions, HandEyeResult
 from .outliers import Disagreement, drop_disagreeing_views
 from .sigma import Spread
-from .view_poses import posed_views
+from .view_poses import posed_views, refined_poses
 
 
 def _checked(dets: list[Detection], robot_poses: Sequence[Transform | None], mode: str,
@@ -136,7 +136,7 @@ def calibrate_hand_eye(dets: list[Detection], robot_poses: Sequence[Transform | 
     reports = [replace(v) for v in cal.views]
     warnings = list(cal.warnings)
     axisymmetric = len({c.center for c in target.circles}) == 1 and not target.checkerboards
-    views, C, idx = posed_views(dets, reports, target, cal.camera(), options, axisymmetric)
+    views, C, idx = posed_views(dets, reports, target, cal.camera(), options, axisymmetric, refined_poses(cal))
     M = [chain_pose(robot_poses[k], mode) for k in idx]  # type: ignore[arg-type]
     if len(idx) < MIN_VIEWS:
         raise HandEyeError(f"only {len(idx)} view(s) with a robot pose and a camera pose; need {MIN_VIEWS}")

@@ -1,4 +1,5 @@
-"""Each view's camera pose (target -> camera) with the calibrated camera held fixed: from the circles
+"""Each view's camera pose (target -> camera) with the calibrated camera: the intrinsic refinement's
+own pose of the view where it has one (:func:`refined_poses`), else from the circles
 (:func:`~..initial.pose_with_camera`) or PnP on the undistorted checkerboard corners, polished on the
 view's own edges (and corners) to the accuracy the hand-eye start needs."""
 
@@ -18,7 +19,7 @@ from ..lm import levenberg_marquardt
 from ..observations import ViewData, observations
 from ..options import CalibrationOptions
 from ..problem import Problem
-from ..result import ViewReport
+from ..result import CalibrationResult, ViewReport
 
 
 def camera_pose(det: Detection, target: Target, cam: Camera, origin: tuple[float, float]) -> Transform:
@@ -63,21 +64,45 @@ def polished_pose(view: ViewData, C: Transform, cam: Camera, opt: CalibrationOpt
     return Transform.from_rotvec(p[:3], p[3:6])
 
 
+def refined_poses(cal: CalibrationResult) -> dict[int, Transform]:
+    """The refinement's pose of each view it used (the view's index in the session -> target in
+    its local frame -> camera): at the joint optimum, so the pose with the calibrated camera held
+    fixed already. ``cal.poses`` lists them in the order of the used views; a 5-dof pose (single
+    ring) is a rotation vector without z component and the translation. Empty if they do not match."""
+    used = [k for k, v in enumerate(cal.views) if v.used]
+    if not cal.refined or len(used) != len(cal.poses):
+        return {}
+    out = {}
+    for k, p in zip(used, cal.poses, strict=True):
+        p = np.asarray(p, float).reshape(-1)
+        if len(p) == 5:
+            out[k] = Transform.from_rotvec([p[0], p[1], 0.0], p[2:5])
+        elif len(p) == 6:
+            out[k] = Transform.from_rotvec(p[:3], p[3:6])
+        else:
+            return {}
+    return out
+
+
 def posed_views(dets: list[Detection], reports: list[ViewReport], target: Target, cam: Camera,
-                options: CalibrationOptions, axisymmetric: bool) -> tuple[list[ViewData], list[Transform], list[int]]:
+                options: CalibrationOptions, axisymmetric: bool, known: dict[int, Transform] | None = None
+                ) -> tuple[list[ViewData], list[Transform], list[int]]:
     """(observations, camera pose, index into the session) of every used view that can be posed
-    with the calibrated camera; a view that cannot is marked unused in ``reports`` with the reason."""
+    with the calibrated camera; a view that cannot is marked unused in ``reports`` with the reason.
+    ``known``: poses already at hand (:func:`refined_poses`), used as they are."""
     origin = target.local_origin
     views: list[ViewData] = []
     C: list[Transform] = []
     idx: list[int] = []
+    known = known or {}
     for k, rep in enumerate(reports):
         if not rep.used:
             continue
         vd = observations(dets[k], target, origin, options)
         try:
-            C.append(polished_pose(vd, camera_pose(dets[k], target, cam, origin), cam, options,
-                                    5 if axisymmetric else 6))
+            dof = 5 if axisymmetric else 6
+            C.append(known[k] if k in known else
+                     polished_pose(vd, camera_pose(dets[k], target, cam, origin), cam, options, dof))
         except (CircularPointError, np.linalg.LinAlgError, ValueError) as e:
             rep.used, rep.reason = False, f"pose with the calibrated camera: {e}"
             continue
