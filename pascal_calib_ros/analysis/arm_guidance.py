@@ -13,9 +13,11 @@ eye in hand G = Y C^-1 X^-1 (X = T_tool_camera, Y = T_base_target), eye to hand 
 **Candidates.** Views of the target placed as for a person (:mod:`.candidates`), also turned
 about the optical axis (what a wrist does best, and what the hand-eye rotation needs: the
 motions' rotation axes spread, as Tsai and Lenz ask: "A new technique for fully autonomous and
-efficient 3D robotics hand/eye calibration", IEEE TRA 5(3), 1989), mapped to tool poses. The
-package knows no kinematics: a tool pose is kept if it lies within ``reach`` metres of a visited
-one and within ``max_turn`` degrees of the nearest visited orientation (a trust region).
+efficient 3D robotics hand/eye calibration", IEEE TRA 5(3), 1989), mapped to tool poses. A view
+turned :data:`DISTINCT_ROLL_DEG` or more from a visited one counts as new: for a person it is the
+same view, for the arm a new motion. The package knows no kinematics: a tool pose is kept if it
+lies within ``reach`` metres of a visited one and within ``max_turn`` degrees of the nearest
+visited orientation (a trust region).
 
 **Prediction.** The joint problem of :class:`..calibrate.handeye.chain.ChainProblem` (intrinsics free,
 X, Y, every view's pose; the chain rows weighted by the arm's estimated accuracy), linearised at
@@ -219,6 +221,7 @@ def chain_rows(model: ArmModel, tools: Sequence[Transform]) -> ChainRows:
     return ChainRows(rows, float(prob.chain.scale**2))
 
 
+DISTINCT_ROLL_DEG = 20.0  # an arm's view rolled this far from another is a new motion (view_ranking.distinct)
 ARM_GRID = CandidateGrid(cols=4, rows=3, span=0.7, sizes=(0.35, 0.5), tilts_deg=(25.0, 45.0), axes=6,
                          rolls_deg=(-60.0, 0.0, 60.0))
 LOCAL_VIEWS = 10  # the latest visited views around which local candidates are made
@@ -281,7 +284,7 @@ def arm_candidates(model: ArmModel, target: Target, trust: TrustRegion, grid: Ca
     placements = candidate_placements(cam, grid, target) + local_placements(model, target, trust)
     cands = feasible_candidates(target, cam, placements, rules)
     seen = [placement_of(target, cam, model.frames.camera_pose(g)) for g in trust.visited]
-    cands = unseen(cands, seen, cam.width, cam.height, roll_deg=20.0)
+    cands = unseen(cands, seen, cam.width, cam.height, roll_deg=DISTINCT_ROLL_DEG)
     tools = [model.frames.tool_pose(pose) for _, pose in cands]
     keep = [k for k, why in enumerate(trust.problems(tools)) if not why]
     return [cands[k] for k in keep], [tools[k] for k in keep]
@@ -303,7 +306,8 @@ def suggest_arm_views(model: ArmModel, target: Target, trust: TrustRegion, n: in
                           + (np.asarray(mm) / goals.translation_mm) ** 2)
 
     ranked = rank_candidates(pred, target, cands, n, options, score,
-                             chain_of=lambda idx: chain_rows(model, [tools[i] for i in idx]))
+                             chain_of=lambda idx: chain_rows(model, [tools[i] for i in idx]),
+                             roll_deg=DISTINCT_ROLL_DEG)
     by_pose = {id(c[1]): k for k, c in enumerate(cands)}
     out = []
     for r in ranked:

@@ -82,21 +82,27 @@ def distinct(a: Placement, b: Placement, width: int, height: int, roll_deg: floa
     """Whether two views differ enough to be offered side by side: centres 15 % of the image
     diagonal apart, or distances 30 % apart, or tilts :data:`DISTINCT_TILT_DEG` apart (the tilt
     as a vector, its length the angle, its direction the axis', so that a head-on view and one
-    tilted 25 degrees differ, and two views tilted 25 degrees about axes 60 degrees apart)."""
+    tilted 25 degrees differ, and two views tilted 25 degrees about axes 60 degrees apart), or,
+    with ``roll_deg`` > 0, rolls about the sheet's normal more than ``roll_deg`` apart (for an arm
+    a view turned about the optical axis is a new motion, the one the hand-eye rotation needs)."""
     if np.hypot(a.pixel[0] - b.pixel[0], a.pixel[1] - b.pixel[1]) > 0.15 * np.hypot(width, height):
         return True
     if abs(np.log(a.distance / b.distance)) > np.log(1.3):
+        return True
+    if roll_deg > 0 and abs((a.roll_deg - b.roll_deg + 180.0) % 360.0 - 180.0) > roll_deg:
         return True
     ta = a.tilt_deg * np.array([np.cos(np.radians(a.axis_deg)), np.sin(np.radians(a.axis_deg))])
     tb = b.tilt_deg * np.array([np.cos(np.radians(b.axis_deg)), np.sin(np.radians(b.axis_deg))])
     return bool(np.linalg.norm(ta - tb) > DISTINCT_TILT_DEG)
 
 
-def pick_distinct(ranked: list[RankedView], n: int, width: int, height: int) -> list[RankedView]:
-    """The best ``n`` of ``ranked`` (sorted best first), each distinct from those before it."""
+def pick_distinct(ranked: list[RankedView], n: int, width: int, height: int, roll_deg: float = 0.0
+                  ) -> list[RankedView]:
+    """The best ``n`` of ``ranked`` (sorted best first), each distinct from those before it
+    (:func:`distinct`, with ``roll_deg``)."""
     out: list[RankedView] = []
     for r in ranked:
-        if all(distinct(r.placement, o.placement, width, height) for o in out):
+        if all(distinct(r.placement, o.placement, width, height, roll_deg) for o in out):
             out.append(r)
         if len(out) == n:
             break
@@ -108,11 +114,12 @@ Scorer = Callable[[Prediction, list[int]], np.ndarray]
 
 def rank_candidates(pred: ViewPredictor, target: Target, candidates: list[tuple[Placement, Transform]], n: int,
                     options: CalibrationOptions = CalibrationOptions(),  # noqa: B008 (frozen dataclass)
-                    score: Scorer | None = None, chain_of: Callable[[list[int]], object] | None = None
-                    ) -> list[RankedView]:
+                    score: Scorer | None = None, chain_of: Callable[[list[int]], object] | None = None,
+                    roll_deg: float = 0.0) -> list[RankedView]:
     """The ``n`` best distinct candidates by ``score`` (default: the predicted worst projection
     sigma), the two passes of the module docstring. ``chain_of(indices)`` gives the robot chain
-    rows (:class:`.guidance.ChainRows`) of those candidates, if any."""
+    rows (:class:`.guidance.ChainRows`) of those candidates, if any; ``roll_deg`` > 0 counts views
+    rolled that far apart as distinct (:func:`distinct`: an arm's wrist turn)."""
     if not candidates:
         return []
     score = score or (lambda p, idx: p.sigma_px)
@@ -127,7 +134,7 @@ def rank_candidates(pred: ViewPredictor, target: Target, candidates: list[tuple[
     ranked = [RankedView(poses[i], candidates[i][0], float(exact.sigma_px[j]), exact.readout_cov[j], float(s[j]))
               for j, i in enumerate(keep)]
     ranked.sort(key=lambda r: r.score)
-    return pick_distinct(ranked, n, pred.width, pred.height)
+    return pick_distinct(ranked, n, pred.width, pred.height, roll_deg)
 
 
 @dataclass(frozen=True)

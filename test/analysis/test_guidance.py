@@ -116,6 +116,20 @@ def test_suggestions_are_ranked_and_distinct(small_session, ring_target: Target)
             assert distinct(a.placement, b.placement, W, H)
 
 
+def test_distinct_counts_a_roll_only_when_asked() -> None:
+    """A view turned about the optical axis is the same view for a person (the same place, size
+    and tilt) but a new motion for an arm: with ``roll_deg`` it is distinct beyond that roll,
+    wrapping at 360 degrees."""
+    from pascal_calib_ros.analysis.candidates import Placement
+
+    a = Placement((400.0, 300.0), 0.5, 35.0, 45.0, 10.0)
+    turned = Placement((400.0, 300.0), 0.5, 35.0, 45.0, 10.0 + 90.0)
+    assert not distinct(a, turned, W, H)
+    assert distinct(a, turned, W, H, roll_deg=20.0)
+    assert not distinct(a, Placement((400.0, 300.0), 0.5, 35.0, 45.0, 25.0), W, H, roll_deg=20.0)
+    assert not distinct(a, Placement((400.0, 300.0), 0.5, 35.0, 45.0, 355.0), W, H, roll_deg=20.0)  # 15 deg apart
+
+
 def test_noise_model_recovers_a_power_law_of_the_imaged_size() -> None:
     """Per-row variances planted as 0.02 (b / 5 px)^-2 over views of the ring grid at different
     distances: the fitted slope is -2 and a candidate's variance follows the law within the

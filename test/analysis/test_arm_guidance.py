@@ -1,0 +1,63 @@
+"""The arm's candidates and ranking (analysis/arm_guidance.py) on a small simulated eye-in-hand session."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pascal_calib_ros.analysis.arm_guidance import (
+    ArmGoals,
+    TrustRegion,
+    arm_candidates,
+    arm_model,
+    suggest_arm_views,
+)
+from pascal_calib_ros.analysis.candidates import placement_of
+from pascal_calib_ros.analysis.guidance import Linearisation, ViewPredictor
+from pascal_calib_ros.calibrate.handeye.options import HandEyeOptions
+from pascal_calib_ros.calibrate.handeye.session import calibrate_hand_eye
+from pascal_calib_ros.detect.target_detector import detect_target
+from pascal_calib_ros.sim.arm import ArmSpec, simulate_arm_session
+from pascal_calib_ros.targets import resolve_target
+
+W, H = 640, 480
+
+
+@pytest.fixture(scope="module")
+def arm_case():  # type: ignore[no-untyped-def]
+    target = resolve_target("ring_grid_a4")
+    s = simulate_arm_session(target, ArmSpec(mode="eye_in_hand", views=5, width=W, height=H, seed=3,
+                                             systematic_mm=0.0))
+    dets = [detect_target(img, target) for img in s.images[target.name]]
+    h = calibrate_hand_eye(dets, list(s.robot_poses), target, "eye_in_hand",
+                           he=HandEyeOptions(jackknife_groups=0))
+    used = [k for k, v in enumerate(h.per_view) if v["used"]]
+    poses = [s.robot_poses[k] for k in used]
+    noise = ViewPredictor(Linearisation.of_refinement(h.calibration.refinement), W, H).noise
+    return target, arm_model(h, poses, target, noise, W, H), poses
+
+
+def test_candidates_include_the_latest_view_turned_about_the_optical_axis(arm_case) -> None:  # type: ignore[no-untyped-def]
+    """A wrist turn of a visited view (same place, size and tilt, rolled 25-90 degrees) is a new
+    motion for the hand-eye rotation: it stays among the candidates; the visited views themselves
+    and turns under 20 degrees do not."""
+    target, model, poses = arm_case
+    trust = TrustRegion(tuple(poses))
+    cands, tools = arm_candidates(model, target, trust)
+    cam = model.predictor.camera_sized
+    last = placement_of(target, cam, model.frames.camera_pose(poses[-1]))
+    turned = [p for p, _ in cands if np.hypot(p.pixel[0] - last.pixel[0], p.pixel[1] - last.pixel[1]) < 2.0
+              and abs(p.distance / last.distance - 1) < 0.01 and abs(p.tilt_deg - last.tilt_deg) < 1.0]
+    rolls = sorted(abs((p.roll_deg - last.roll_deg + 180) % 360 - 180) for p in turned)
+    assert rolls, "no turned copy of the latest view among the candidates"
+    assert min(rolls) > 20.0 and max(rolls) > 80.0
+    assert len(tools) == len(cands)
+
+
+def test_the_best_tool_pose_lowers_the_predicted_hand_eye_sigma(arm_case) -> None:  # type: ignore[no-untyped-def]
+    target, model, poses = arm_case
+    s = suggest_arm_views(model, target, TrustRegion(tuple(poses)), n=3, goals=ArmGoals(0.05, 0.005, 0.05))
+    assert len(s.suggestions) == 3
+    best = s.suggestions[0]
+    assert best.predicted_rotation_deg < s.rotation_deg and best.predicted_translation_mm < s.translation_mm
+    assert best.view.predicted_sigma_px < s.sigma_px
