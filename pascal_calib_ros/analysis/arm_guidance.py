@@ -40,6 +40,7 @@ from ..calibrate.handeye.closed_form import chain_pose
 from ..calibrate.handeye.options import HandEyeResult
 from ..calibrate.options import CalibrationOptions
 from ..geometry.lens import DISTORTION_CHOICES
+from ..geometry.so3 import left_jacobian
 from ..geometry.transform import Transform
 from ..targets import Target
 from .candidates import (
@@ -172,25 +173,12 @@ def hand_eye_sigmas(model: ArmModel, cov: np.ndarray) -> tuple[float, float]:
     axes; the rotation as small rotations about the parent frame's axes)."""
     k0 = cov.shape[-1] - 6
     rv = model.problem.chain_params(model.predictor.lin.x)[:3]
-    J = _rotation_jacobian(rv)
+    J = left_jacobian(rv)  # d (small rotation about the parent axes) / d rvec
     cr = J @ cov[..., k0:k0 + 3, k0:k0 + 3] @ J.T
     ct = cov[..., k0 + 3:k0 + 6, k0 + 3:k0 + 6]
     deg = np.degrees(np.sqrt(np.maximum(np.trace(cr, axis1=-2, axis2=-1), 0.0)))
     mm = 1000 * np.sqrt(np.maximum(np.trace(ct, axis1=-2, axis2=-1), 0.0))
     return deg, mm
-
-
-def _rotation_jacobian(rv: np.ndarray) -> np.ndarray:
-    """d(small rotation about the parent axes) / d(rotation vector), by central differences."""
-    R0 = Rotation.from_rotvec(rv)
-    J = np.zeros((3, 3))
-    h = 1e-6
-    for k in range(3):
-        e = np.zeros(3)
-        e[k] = h
-        J[:, k] = ((Rotation.from_rotvec(rv + e) * R0.inv()).as_rotvec()
-                   - (Rotation.from_rotvec(rv - e) * R0.inv()).as_rotvec()) / (2 * h)
-    return J
 
 
 def chain_rows(model: ArmModel, tools: Sequence[Transform]) -> ChainRows:

@@ -7,8 +7,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
+from ...geometry.so3 import left_jacobian
 from ...geometry.transform import Transform
 from .chain import ChainProblem
 from .closed_form import (
@@ -47,25 +47,13 @@ def spread_of(cov: np.ndarray, xy: np.ndarray, base: int) -> Spread:
     (X's rotation vector, X's translation, Y's rotation vector, Y's translation; ``xy`` their values:
     rotation vectors are turned into small rotations about the parent axes)."""
     def axes(off: int) -> tuple[np.ndarray, np.ndarray]:
-        J = _rot_jacobian(xy[off:off + 3])
+        J = left_jacobian(xy[off:off + 3])  # d (small rotation about the parent axes) / d rvec
         b = base + off
         cr = J @ cov[b:b + 3, b:b + 3] @ J.T
         ct = cov[b + 3:b + 6, b + 3:b + 6]
         return 1000 * np.sqrt(np.maximum(np.diag(ct), 0)), np.degrees(np.sqrt(np.maximum(np.diag(cr), 0)))
 
     return Spread(*axes(0), *axes(6))
-
-
-def _rot_jacobian(rv: np.ndarray) -> np.ndarray:
-    """d (small rotation about the parent axes) / d rvec (numerically)."""
-    R0 = Rotation.from_rotvec(rv)
-    J = np.zeros((3, 3))
-    h = 1e-7
-    for k in range(3):
-        e = np.zeros(3)
-        e[k] = h
-        J[:, k] = (Rotation.from_rotvec(rv + e) * R0.inv()).as_rotvec() / h
-    return J
 
 
 def arm_field_covariance(positions: np.ndarray, sigma_m: float, length_m: float) -> np.ndarray:
