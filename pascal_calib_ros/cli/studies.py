@@ -30,7 +30,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--sessions", type=int, default=None,
                    help="verify: verification sessions per scenario (default 20); stereo: sessions of the accuracy "
                         "table (default 5)")
-    s.add_argument("--draws", type=int, default=10, help="trust, stereo: noise draws and new sessions per scenario")
+    s.add_argument("--draws", type=int, default=None,
+                   help="trust, stereo: noise draws and new sessions per scenario (default 10); guided: the arm "
+                        "sessions' views shot again under this many fresh noise draws (default 0: none)")
     s.add_argument("--only", default="", help="trust: only the scenarios whose name contains this text; verify: "
                                               "camera, hand-eye and/or timing; guided: ring, grid, board, fisheye, "
                                               "arm, timing and/or tilt (comma-separated)")
@@ -66,12 +68,13 @@ def cmd_study(args: argparse.Namespace) -> int:
     if args.name == "guided":
         from ..studies.guided_study import run_guided_study
 
-        run_guided_study(Path(args.out), seeds=args.seeds, quick=args.quick, only=args.only, jobs=args.jobs)
+        run_guided_study(Path(args.out), seeds=args.seeds, quick=args.quick, only=args.only, jobs=args.jobs,
+                         draws=args.draws or 0)
         return EXIT_OK
     if args.name == "trust":
         from ..studies.trust_study import trust
 
-        trust(Path(args.out), draws=args.draws, views=args.views or 12, only=args.only)
+        trust(Path(args.out), draws=args.draws or 10, views=args.views or 12, only=args.only)
         return EXIT_OK
     if args.name == "verify":
         from ..studies.verify_study import StudySpec, verify_study
@@ -89,7 +92,7 @@ def cmd_study(args: argparse.Namespace) -> int:
     if args.name == "stereo":
         from ..studies.stereo_study import stereo_study
 
-        stereo_study(Path(args.out), args.views or 15, args.seed, args.draws, args.sessions or 5)
+        stereo_study(Path(args.out), args.views or 15, args.seed, args.draws or 10, args.sessions or 5)
         return EXIT_OK
     from ..studies.study import run_study
 

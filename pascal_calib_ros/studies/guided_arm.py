@@ -21,6 +21,13 @@ Strategies (the tool pose commanded; the arm reaches it and reports it with its 
 
 Per strategy and N (6, 8, 10, 12, 14, 17, 20 views used): X's true rotation and translation error,
 fx's error and the true projection error over the whole image (as :mod:`.guided_study`).
+
+One session's error is one draw of the image and arm noise: its norm over three axes spreads by
+about 40 %, so a median over 20 seeds moves by 10-15 % and a ratio of two by more. With
+``draws`` > 0 each session's views (the tool poses commanded, as the strategy chose them) are
+shot again under that many fresh draws of the image and arm noise and calibrated at N = 8, 12, 20
+(:func:`redraw_session`): the error the strategy's *views* give, averaged over the noise, pooled
+over the seeds as an RMS (``guided_arm_redraws.jsonl``).
 """
 
 from __future__ import annotations
@@ -49,6 +56,8 @@ from .guided_errors import true_errors
 
 ARM_N = (6, 8, 10, 12, 14, 17, 20)
 ARM_STRATEGIES = ("guided", "designed", "random", "easy_handeye")
+REDRAW_N = (8, 12, 20)
+REDRAW_STRATEGIES = ("guided", "designed", "random")  # easy_handeye's X is off by degrees: nothing to average
 MODE = "eye_in_hand"
 
 
@@ -147,6 +156,7 @@ def run_arm_session(strategy: str, seed: int, target_name: str = "ring_grid_a4",
     cell = ArmCell(target, spec, seed)
     dets: list[Any] = []
     tools: list[Transform] = []
+    commanded: list[Transform] = []  # the tool poses of the usable views, as the strategy asked for them
     curve: dict[str, Any] = {}
     t_start = time.perf_counter()
     plan = _plan(strategy if strategy != "guided" else "designed", cell, seed)
@@ -168,13 +178,40 @@ def run_arm_session(strategy: str, seed: int, target_name: str = "ring_grid_a4",
             continue
         dets.append(det)
         tools.append(reported)
+        commanded.append(tool)
         n = len(dets)
         if n >= 3 and (strategy == "guided" or n in ARM_N):
             figures, h = _evaluate(cell, dets, tools)
             if n in ARM_N:
                 curve[str(n)] = figures
     return {"strategy": strategy, "seed": seed, "target": target_name, "curve": curve, "shots": cell.shots,
-            "views": len(dets), "seconds": time.perf_counter() - t_start}
+            "views": len(dets), "seconds": time.perf_counter() - t_start,
+            "commanded": [[*t.translation, *t.quat] for t in commanded]}
+
+
+def redraw_session(row: dict[str, Any], draws: int, quick: bool = False) -> dict[str, Any]:
+    """The session's commanded tool poses shot again under ``draws`` fresh draws of the image and
+    arm noise (cells seeded apart from every session's), calibrated at each N of
+    :data:`REDRAW_N` on the first N usable views: per N the figures of each draw."""
+    target = resolve_target(row["target"])
+    seed = int(row["seed"])
+    spec = ArmSpec(mode=MODE, width=640 if quick else 800, height=480 if quick else 600, k1=-0.1, seed=seed,
+                   systematic_mm=0.0)
+    poses = [Transform.from_quat(c[3:], c[:3]) for c in row["commanded"]]
+    out: dict[str, list[dict[str, Any]]] = {str(n): [] for n in REDRAW_N if n <= len(poses)}
+    for d in range(draws):
+        cell = ArmCell(target, spec, 10_000 * (d + 1) + seed)
+        dets, tools = [], []
+        for tool in poses:
+            det, reported = cell.shoot(tool)
+            if det.ok:
+                dets.append(det)
+                tools.append(reported)
+        for key in out:
+            n = int(key)
+            if len(dets) >= n:
+                out[key].append(_evaluate(cell, dets[:n], tools[:n])[0])
+    return {"strategy": row["strategy"], "seed": seed, "draws": draws, "redraw": out}
 
 
 def _guided_next(h: HandEyeResult | None, dets: list[Any], tools: list[Transform], target: Target,
@@ -193,6 +230,58 @@ def _guided_next(h: HandEyeResult | None, dets: list[Any], tools: list[Transform
 def _task(args: tuple[str, int, str, bool]) -> dict[str, Any]:
     with threadpool_limits(1, "blas"):
         return run_arm_session(*args)
+
+
+def _redraw_task(args: tuple[dict[str, Any], int, bool]) -> dict[str, Any]:
+    with threadpool_limits(1, "blas"):
+        return redraw_session(*args)
+
+
+def _rms(v: list[float]) -> float:
+    return float(np.sqrt(np.mean(np.square(v)))) if v else float("nan")
+
+
+def _ratio(a: dict[int, list[float]], b: dict[int, list[float]], rng: np.random.Generator) -> str:
+    """RMS of ``a`` over RMS of ``b`` over the seeds both have, and its 90 % interval from 400
+    bootstrap resamples of those seeds."""
+    both = [s for s in a if a[s] and b.get(s)]
+    if not both:
+        return ""
+
+    def ratio(seeds: Any) -> float:
+        return _rms([x for s in seeds for x in a[s]]) / _rms([x for s in seeds for x in b[s]])
+
+    boot = [ratio(rng.choice(both, len(both))) for _ in range(400)]
+    return f"{ratio(both):.2f} ({np.percentile(boot, 5):.2f}-{np.percentile(boot, 95):.2f})"
+
+
+def summarise_redraws(rows: list[dict[str, Any]]) -> str:
+    """Markdown table of the re-drawn sessions: per strategy and N the RMS over every draw of every
+    seed, and the ratio to the designed 20 views' with a 90 % bootstrap interval over the seeds."""
+    if not rows:
+        return ""
+    draws = rows[0]["draws"]
+    lines = [f"\n### arm: the strategies' views under {draws} fresh noise draws each (RMS over seeds and draws)",
+             "", "| strategy | seeds | N | X rotation (deg) | X translation (mm) | fx (%) | projection RMS (px) | "
+             "rotation / designed 20 | translation / designed 20 |", "|---|---|---|---|---|---|---|---|---|"]
+    rng = np.random.default_rng(0)
+
+    def per_seed(st: str, n: int, key: str) -> dict[int, list[float]]:
+        return {r["seed"]: [abs(f[key]) for f in r["redraw"].get(str(n), []) if "failed" not in f]
+                for r in rows if r["strategy"] == st}
+
+    ref = {k: per_seed("designed", 20, k) for k in ("rot_err_deg", "trans_err_mm")}
+    for st in REDRAW_STRATEGIES:
+        for n in REDRAW_N:
+            cols = {k: per_seed(st, n, k) for k in ("rot_err_deg", "trans_err_mm", "fx_err_pct", "proj_rms_px")}
+            seeds = sorted(s for s, v in cols["rot_err_deg"].items() if v)
+            if not seeds:
+                continue
+            pooled = {k: _rms([x for s in seeds for x in c[s]]) for k, c in cols.items()}
+            ratios = [_ratio(cols[k], ref[k], rng) for k in ("rot_err_deg", "trans_err_mm")]
+            lines.append(f"| {st} | {len(seeds)} | {n} | {pooled['rot_err_deg']:.4f} | {pooled['trans_err_mm']:.3f} | "
+                         f"{pooled['fx_err_pct']:.4f} | {pooled['proj_rms_px']:.3f} | {ratios[0]} | {ratios[1]} |")
+    return "\n".join(lines)
 
 
 def summarise_arm(rows: list[dict[str, Any]]) -> str:
@@ -216,8 +305,10 @@ def summarise_arm(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
-def run_arm_study(out: Path, seeds: int, quick: bool, jobs: int, target_name: str = "ring_grid_a4") -> str:
-    """Run the arm sessions (resumable: ``guided_arm_sessions.jsonl``); the table."""
+def run_arm_study(out: Path, seeds: int, quick: bool, jobs: int, target_name: str = "ring_grid_a4",
+                  draws: int = 0) -> str:
+    """Run the arm sessions (resumable: ``guided_arm_sessions.jsonl``), then with ``draws`` their
+    views again under fresh noise (``guided_arm_redraws.jsonl``); the tables."""
     import multiprocessing as mp
 
     part = out / "guided_arm_sessions.jsonl"
@@ -237,4 +328,26 @@ def run_arm_study(out: Path, seeds: int, quick: bool, jobs: int, target_name: st
                              f"{r['shots']} shots, X at 12: {c12.get('rot_err_deg', float('nan')):.4f} deg "
                              f"{c12.get('trans_err_mm', float('nan')):.3f} mm, {r['seconds']:.0f} s "
                              f"(elapsed {time.perf_counter() - t0:.0f} s)\n")
-    return summarise_arm(rows)
+    return summarise_arm(rows) + (_run_redraws(out, rows, draws, quick, jobs) if draws > 0 else "")
+
+
+def _run_redraws(out: Path, rows: list[dict[str, Any]], draws: int, quick: bool, jobs: int) -> str:
+    """:func:`redraw_session` of every session with its commanded poses (resumable); the table."""
+    import multiprocessing as mp
+
+    part = out / "guided_arm_redraws.jsonl"
+    done = [json.loads(line) for line in part.read_text().splitlines()] if part.exists() else []
+    done = [r for r in done if r["draws"] == draws]
+    have = {(r["strategy"], r["seed"]) for r in done}
+    todo = [(r, draws, quick) for r in rows if r["strategy"] in REDRAW_STRATEGIES and r.get("commanded")
+            and (r["strategy"], r["seed"]) not in have]
+    sys.stderr.write(f"arm redraws: {len(todo)} sessions x {draws} draws to run ({len(done)} kept)\n")
+    t0 = time.perf_counter()
+    with open(part, "a") as f, mp.get_context("fork").Pool(jobs) as pool:
+        for k, r in enumerate(pool.imap_unordered(_redraw_task, todo), 1):
+            done.append(r)
+            f.write(json.dumps(r) + "\n")
+            f.flush()
+            sys.stderr.write(f"[{k}/{len(todo)}] redraw {r['strategy']} seed {r['seed']} "
+                             f"(elapsed {time.perf_counter() - t0:.0f} s)\n")
+    return summarise_redraws(done)

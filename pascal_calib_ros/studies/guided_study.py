@@ -273,8 +273,9 @@ def tilt_limits(quick: bool, per_tilt: int = 12) -> str:
 
 
 def run_guided_study(out: Path, seeds: int = 20, quick: bool = False, only: str = "", jobs: int = 2,
-                     strategies: tuple[str, ...] = STRATEGIES, n_max: int = 20) -> dict[str, Any]:
-    """Run the person cases (module docstring); write guided.json and guided.md to ``out``."""
+                     strategies: tuple[str, ...] = STRATEGIES, n_max: int = 20, draws: int = 0) -> dict[str, Any]:
+    """Run the person cases (module docstring); write guided.json and guided.md to ``out``. ``draws``:
+    the arm sessions' views again under that many fresh noise draws (:mod:`.guided_arm`)."""
     out.mkdir(parents=True, exist_ok=True)
     cs = cases(quick)
     want = only.split(",") if only else [*cs, "arm", "timing"]
@@ -287,7 +288,7 @@ def run_guided_study(out: Path, seeds: int = 20, quick: bool = False, only: str 
     if "arm" in want:
         from .guided_arm import run_arm_study
 
-        extra += run_arm_study(out, seeds, quick, jobs)
+        extra += run_arm_study(out, seeds, quick, jobs, draws=draws)
     if not keys:
         print(extra)
         (out / "guided_extra.md").write_text(extra + "\n")

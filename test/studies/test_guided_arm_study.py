@@ -30,3 +30,26 @@ def test_cells_of_different_sessions_render_different_image_noise() -> None:
     assert len(both) > 100  # the same circles seen
     diff = max(float(np.max(np.abs(c1[k] - c2[k]))) for k in both)
     assert 0 < diff < 1e-2  # fitted to differently noisy edges
+
+
+def test_redrawn_views_average_the_noise_of_one_session() -> None:
+    """A session's commanded tool poses shot again under fresh noise: one calibration per draw at
+    each N the views reach, each with its own noise (the errors differ), all of them sane; the
+    summary pools them per strategy and N."""
+    from pascal_calib_ros.studies.guided_arm import redraw_session, summarise_redraws
+
+    target = resolve_target("ring_grid_a4")
+    spec = ArmSpec(mode=MODE, width=640, height=480, k1=-0.1, seed=3, systematic_mm=0.0)
+    cell = ArmCell(target, spec, 3)
+    tools = [cell.tool_of(C) for C in designed_views(target, spec)[:8]]
+    row = {"strategy": "designed", "seed": 3, "target": "ring_grid_a4",
+           "commanded": [[*t.translation, *t.quat] for t in tools]}
+    r = redraw_session(row, draws=2, quick=True)
+    assert set(r["redraw"]) == {"8"}  # 12 and 20 are beyond the session's views
+    a, b = r["redraw"]["8"]
+    assert "failed" not in a and "failed" not in b
+    assert a["rot_err_deg"] != b["rot_err_deg"]
+    for f in (a, b):
+        assert f["rot_err_deg"] < 0.1 and f["trans_err_mm"] < 1.0 and f["used"] == 8
+    table = summarise_redraws([r])
+    assert "| designed | 1 | 8 |" in table
