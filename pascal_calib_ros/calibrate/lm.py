@@ -37,13 +37,15 @@ class LMResult:
     iterations: int
     success: bool
     message: str
+    jacobian: tuple[np.ndarray, np.ndarray] | None = None  # (dF/d globals, dF/d own view) at the solution
 
 
 def levenberg_marquardt(prob: LeastSquaresProblem, x0: np.ndarray, intr0: np.ndarray, loss_scale: float,
                         max_iter: int = 60, tol: float = 1e-10) -> LMResult:
     """Levenberg-Marquardt with iteratively reweighted soft-L1 loss rho(z) = 2 (sqrt(1 + z) - 1),
     z = (r / f)^2, weights 1 / sqrt(1 + z); normal equations from :meth:`Problem.normal_equations`
-    (Jacobi-scaled, dense: a few hundred parameters at most)."""
+    (Jacobi-scaled, dense: a few hundred parameters at most). A trial step's residuals are
+    evaluated without the Jacobian; it is assembled only for the steps taken."""
     x = x0.copy()
     f, Jg, Jv = prob.evaluate(x, intr0)
     nfev = 1
@@ -69,12 +71,13 @@ def levenberg_marquardt(prob: LeastSquaresProblem, x0: np.ndarray, intr0: np.nda
                 lam *= 10
                 continue
             xn = x + step
-            fn, Jgn, Jvn = prob.evaluate(xn, intr0)
+            fn = prob.evaluate(xn, intr0, jac=False)[0]
             nfev += 1
             cn = robust_cost(fn)
             if cn < cost:
                 rel = (cost - cn) / max(cost, 1e-300)
-                x, f, Jg, Jv, cost = xn, fn, Jgn, Jvn, cn
+                x, f, cost = xn, fn, cn
+                _, Jg, Jv = prob.evaluate(x, intr0)
                 lam = max(lam * 0.2, 1e-9)
                 improved = True
                 break
@@ -88,4 +91,4 @@ def levenberg_marquardt(prob: LeastSquaresProblem, x0: np.ndarray, intr0: np.nda
     w = prob.robust_weights(f, loss_scale)
     A, _ = prob.normal_equations(f, Jg, Jv, w)
     return LMResult(x=x, fun=f, normal_matrix=A, weights=w, cost=cost, nfev=nfev, iterations=it, success=success,
-                    message=message)
+                    message=message, jacobian=(Jg, Jv))

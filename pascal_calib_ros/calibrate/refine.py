@@ -176,7 +176,7 @@ def _refine_result(prob: Problem, sol: LMResult, intr0: np.ndarray, loss_scale: 
     kappa = correlation_factors(prob, views, sol.fun)
     names = prob.names
     try:
-        _, Jg, Jv = prob.evaluate(sol.x, intr0)
+        Jg, Jv = sol.jacobian if sol.jacobian is not None else prob.evaluate(sol.x, intr0)[1:]
         psi, dpsi = prob.loss_derivatives(sol.fun, loss_scale)
         var = row_variances(prob, views, sol.fun, psi, len(sol.x))
         cov = sandwich_covariance(prob, sol.fun, Jg, Jv, dpsi, var)
