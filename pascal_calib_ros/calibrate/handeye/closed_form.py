@@ -112,7 +112,6 @@ def ring_closed_form(M: list[Transform], centres: np.ndarray, normals: np.ndarra
     centre and normal in the fixed frame; R_X as 9 unknowns, then the nearest rotation), refined
     by nonlinear least squares on the same loop. Y's rotation about the target's axis is set to
     make the first view's rotation about its axis zero."""
-    n = len(M)
     rows, rhs = [], []
     for m, c, nv in zip(M, centres, normals, strict=True):
         RM = m.R
@@ -138,14 +137,16 @@ def ring_closed_form(M: list[Transform], centres: np.ndarray, normals: np.ndarra
         th, ph = p[9], p[10]
         return X, p[6:9], np.array([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
 
+    RM = np.array([m.R for m in M]).reshape(-1, 3, 3)
+    tM = np.array([m.translation for m in M]).reshape(-1, 3)
+
     def res(p: np.ndarray) -> np.ndarray:
+        # per view (M_k X c_k - p, L (R_Mk R_X n_k - d)), all views at once
         X, pc, d = unpack(p)
-        out = []
-        for k in range(n):
-            MX = M[k] @ X
-            out.append(MX.apply(centres[k]) - pc)
-            out.append(length * (MX.rotation.apply(normals[k]) - d))
-        return np.concatenate(out)
+        RX = X.R
+        pts = np.einsum("kij,kj->ki", RM, centres @ RX.T + X.translation) + tM - pc
+        nrm = length * (np.einsum("kij,kj->ki", RM, normals @ RX.T) - d)
+        return np.concatenate([pts, nrm], 1).ravel()
 
     th0 = float(np.arccos(np.clip(d0[2], -1, 1)))
     p0 = np.r_[Rotation.from_matrix(RX).as_rotvec(), z[9:12], z[12:15], th0, np.arctan2(d0[1], d0[0])]
@@ -214,13 +215,14 @@ def chain_disagreement(M: list[Transform], X: Transform, Y: Transform, C: list[T
 def complete_ring_poses(M: list[Transform], X: Transform, Y: Transform, C: list[Transform]) -> list[Transform]:
     """Each view's rotation about the ring's axis from the chain: the predicted pose
     X^-1 M^-1 Y turned minimally so that its z axis is the measured normal; the measured centre."""
-    out = []
-    for m, c in zip(M, C, strict=True):
-        P = X.inverse() @ m.inverse() @ Y
-        z_pred, z_meas = P.R[:, 2], c.R[:, 2]
-        axis = np.cross(z_pred, z_meas)
-        s = float(np.linalg.norm(axis))
-        turn = Rotation.from_rotvec(axis / s * np.arctan2(s, float(z_pred @ z_meas))) if s > 1e-12 \
-            else Rotation.identity()
-        out.append(Transform(turn * P.rotation, c.translation))
-    return out
+    if not M:
+        return []
+    RP = X.rotation.inv() * Rotation.concatenate([m.rotation for m in M]).inv() * Y.rotation  # all views at once
+    z_pred = RP.as_matrix().reshape(-1, 3, 3)[:, :, 2]
+    z_meas = np.array([c.R[:, 2] for c in C])
+    axis = np.cross(z_pred, z_meas)
+    s = np.linalg.norm(axis, axis=1)
+    ang = np.arctan2(s, np.sum(z_pred * z_meas, 1))
+    rv = np.where(s[:, None] > 1e-12, axis / np.maximum(s, 1e-300)[:, None] * ang[:, None], 0.0)
+    R = Rotation.from_rotvec(rv) * RP
+    return [Transform(R[k], c.translation) for k, c in enumerate(C)]
