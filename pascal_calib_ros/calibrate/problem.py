@@ -85,8 +85,8 @@ def shape_frame_of(points: np.ndarray) -> tuple[float, float, float, float]:
 @dataclass(frozen=True)
 class EdgeFit:
     """The edge rows at one parameter vector: residuals, and what their Jacobian needs (per point
-    the outward unit normal in the image, the foot point on the printed sheet and in the camera
-    frame, dq/dX there, d printed point / d shape)."""
+    the outward unit normal in the image, the foot point on the printed sheet (x, y on a flat one)
+    and in the camera frame, dq/dX there, d printed point / d shape)."""
 
     f: np.ndarray
     nrm: np.ndarray
@@ -259,46 +259,57 @@ class Problem:
     def _edge_fit(self, x: np.ndarray, intr0: np.ndarray, K: np.ndarray, D: np.ndarray, R: np.ndarray,
                   t: np.ndarray, shape: np.ndarray, offsets: np.ndarray) -> EdgeFit:
         """The edge rows at x (module docstring): each point's foot point on the imaged circle, the
-        outward normal there and the signed distance; the last one is kept (:meth:`evaluate`)."""
+        outward normal there and the signed distance; the last one is kept (:meth:`evaluate`). A flat
+        sheet (no shape parameter) in the board's x, y only."""
         key = x.tobytes() + intr0.tobytes()
         if self._fit_cache is not None and self._fit_cache[0] == key:
             return self._fit_cache[1]
         vi = self.view_of_pt
+        flat = not self.shape_idx
         Rt = np.transpose(R, (0, 2, 1))
+        Rb = Rt[:, :2, :] if flat else Rt  # board coordinates -> camera directions, as rows
         tv = t[vi]
-        ctr = self.board(self.centers, shape)[0]
         rays = self._rays(K, D)
-        n = R[:, :, 2][vi]
-        lam = (np.sum(n * tv, 1) + ctr[:, 2]) / np.sum(n * rays, 1)
-        X = rays * lam[:, None]
-        P = self._per_view(X - tv, R)  # R^T (X - t), as rows
-        rel = P[:, :2] - ctr[:, :2]
+        # the ray's intersection with the plane of its circle (z = 0, or the warped circle's height)
+        lam = np.sum(R[:, :, 2] * t, 1)[vi] / self._per_view(rays, R[:, :, 2:])[:, 0]
+        ctr = self.centers
+        if not flat:
+            ctr3 = self.board(self.centers, shape)[0]
+            lam = (np.sum(R[:, :, 2] * t, 1)[vi] + ctr3[:, 2]) / self._per_view(rays, R[:, :, 2:])[:, 0]
+            ctr = ctr3[:, :2]
+        rel = self._per_view(rays * lam[:, None] - tv, R[:, :, :2]) - ctr  # R^T (X - t), as rows
         rho = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1e-12)
         u = rel / rho[:, None]
         r = self.radii[:, None]
         s1 = 1 + shape[0]
+        dPds = np.zeros((0, 3, 3))
         for step in range(2):
             # the circle point at angle u, drawn on the printed sheet (each point at its own z)
-            Q, dPds, slope = self.board(self.centers + r * u, shape)
-            Xc = self._per_view(Q, Rt) + tv
+            if flat:
+                Q, tang = self.centers + r * u, np.stack([-u[:, 1], u[:, 0]], 1)
+            else:
+                Q, dPds, slope = self.board(self.centers + r * u, shape)
+                tang = np.stack([-u[:, 1], s1 * u[:, 0], slope[:, 0] * -u[:, 1] + slope[:, 1] * u[:, 0]], 1)
+            Xc = self._per_view(Q, Rb) + tv
             q, dqdX = project_with_point_jacobian(Xc, K, D, self.lens)
-            tang = np.stack([-u[:, 1], s1 * u[:, 0], slope[:, 0] * -u[:, 1] + slope[:, 1] * u[:, 0]], 1)
-            ti = _times(dqdX, self._per_view(tang, Rt))  # image of the circle's tangent (per radian / r)
+            ti = _times(dqdX, self._per_view(tang, Rb))  # image of the circle's tangent (per radian / r)
             if step:
                 break
             # slide Q along the circle to the image foot point of u (one Gauss-Newton step on the
             # angle): the radial point of the plane is not the nearest in a perspective image, and
             # the Jacobian below is exact only at the foot point
-            dq = ti * r
-            dth = np.sum(dq * (self.pts - q), 1) / np.maximum(np.sum(dq * dq, 1), 1e-30)
+            dq, e = ti * r, self.pts - q
+            dth = (dq[:, 0] * e[:, 0] + dq[:, 1] * e[:, 1]) / np.maximum(dq[:, 0] * dq[:, 0] + dq[:, 1] * dq[:, 1],
+                                                                        1e-30)
             c, s_ = np.cos(dth), np.sin(dth)
             u = np.stack([c * u[:, 0] - s_ * u[:, 1], s_ * u[:, 0] + c * u[:, 1]], 1)
-        radial = np.stack([u[:, 0], s1 * u[:, 1], slope[:, 0] * u[:, 0] + slope[:, 1] * u[:, 1]], 1)
-        ri = _times(dqdX, self._per_view(radial, Rt))  # image of the outward radius
+        radial = u if flat else np.stack([u[:, 0], s1 * u[:, 1], slope[:, 0] * u[:, 0] + slope[:, 1] * u[:, 1]], 1)
+        ri = _times(dqdX, self._per_view(radial, Rb))  # image of the outward radius
         ti /= np.maximum(np.hypot(ti[:, 0], ti[:, 1]), 1e-15)[:, None]
         orient = np.sign(ri[:, 0] * ti[:, 1] - ri[:, 1] * ti[:, 0])
         nrm = np.stack([ti[:, 1], -ti[:, 0]], 1) * orient[:, None]  # outward unit normal in the image
-        f = np.sum(nrm * (self.pts - q), 1) - self.signs * offsets[vi]
+        e = self.pts - q
+        f = (nrm[:, 0] * e[:, 0] + nrm[:, 1] * e[:, 1]) - self.signs * offsets[vi]
         fit = EdgeFit(f, nrm, Q, Xc, dqdX, dPds)
         self._fit_cache = (key, fit)
         return fit
@@ -318,9 +329,9 @@ class Problem:
             Jg[:, nf:self.n_base] = -np.einsum("nk,nks->ns", g, fit.dPds[:, :, self.shape_idx])
         Jv = np.empty((len(fit.f), self.per_view))
         # n^T dq/dX . (dR/drv_k Q): the outer product h Q^T against each view's dR/drv_k
-        nr = self.dof - 3
-        hQ = (h[:, :, None] * fit.Q[:, None, :]).reshape(-1, 9)
-        dRt = dR.reshape(len(dR), nr, 9).transpose(0, 2, 1)
+        nr, kq = self.dof - 3, fit.Q.shape[1]  # Q in the board's x, y (flat) or x, y, z
+        hQ = (h[:, :, None] * fit.Q[:, None, :]).reshape(-1, 3 * kq)
+        dRt = dR[..., :kq].reshape(len(dR), nr, 3 * kq).transpose(0, 2, 1)
         for v, sl in enumerate(self.edge_slices):
             Jv[sl, :nr] = -(hQ[sl] @ dRt[v])
         Jv[:, nr:self.dof] = -h

@@ -86,7 +86,7 @@ def undistort(xd: np.ndarray, D: np.ndarray, iterations: int = 8) -> np.ndarray:
 def _affine_jacobian(dxd: np.ndarray, K: np.ndarray) -> np.ndarray:
     """The affine part of K applied to d x_d / d(...) (N, 2, k): rows (fx, s) and (0, fy)."""
     out = np.empty_like(dxd)
-    out[:, 0] = K[0, 0] * dxd[:, 0] + K[0, 1] * dxd[:, 1]
+    out[:, 0] = K[0, 0] * dxd[:, 0] + K[0, 1] * dxd[:, 1] if K[0, 1] else K[0, 0] * dxd[:, 0]
     out[:, 1] = K[1, 1] * dxd[:, 1]
     return out
 
@@ -112,7 +112,10 @@ def project_with_point_jacobian(X: np.ndarray, K: np.ndarray, D: np.ndarray, len
     """Pixels q (N, 2) and dq/dX (N, 2, 3) of camera-frame points (N, 3): :func:`project_with_jacobians`
     without the intrinsics' Jacobian."""
     xd, dxdX = lens.distort_with_point_jacobian(np.asarray(X, float), D)
-    return normalized_to_pixels(xd, K), _affine_jacobian(dxdX, K)
+    q = np.empty_like(xd)
+    q[:, 0] = K[0, 0] * xd[:, 0] + K[0, 1] * xd[:, 1] + K[0, 2] if K[0, 1] else K[0, 0] * xd[:, 0] + K[0, 2]
+    q[:, 1] = K[1, 1] * xd[:, 1] + K[1, 2]
+    return q, _affine_jacobian(dxdX, K)
 
 
 def rodrigues(rvec: np.ndarray) -> np.ndarray:

@@ -103,8 +103,11 @@ class PolynomialModel(LensModel):
 
     def _radial(self, xy: np.ndarray, D: np.ndarray) -> tuple[np.ndarray, ...]:
         """r^2, the rational factor's denominator, the factor R and dR/d(r^2)."""
+        return self._radial_of(xy[..., 0], xy[..., 1], D)
+
+    def _radial_of(self, x: np.ndarray, y: np.ndarray, D: np.ndarray) -> tuple[np.ndarray, ...]:
+        """:meth:`_radial` of the coordinates x, y."""
         k1, k2, _, _, k3, k4, k5, k6 = self._d8(D)
-        x, y = xy[..., 0], xy[..., 1]
         r2 = x * x + y * y
         num = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
         den = 1 + r2 * (k4 + r2 * (k5 + r2 * k6))
@@ -115,9 +118,13 @@ class PolynomialModel(LensModel):
                      ) -> tuple[np.ndarray, ...]:
         """d x_d / d (x, y) as (a, b, c, d) = (dxd/dx, dxd/dy, dyd/dx, dyd/dy); ``radial_terms``:
         :meth:`_radial` of the same points, if the caller has it."""
+        return self._jacobian_of(xy[..., 0], xy[..., 1], D, radial_terms)
+
+    def _jacobian_of(self, x: np.ndarray, y: np.ndarray, D: np.ndarray,
+                     radial_terms: tuple[np.ndarray, ...] | None = None) -> tuple[np.ndarray, ...]:
+        """:meth:`_jacobian_xy` of the coordinates x, y."""
         p1, p2 = self._d8(D)[2:4]
-        x, y = xy[..., 0], xy[..., 1]
-        _, _, radial, dradial = radial_terms if radial_terms is not None else self._radial(xy, D)
+        _, _, radial, dradial = radial_terms if radial_terms is not None else self._radial_of(x, y, D)
         b = 2 * x * y * dradial + 2 * p1 * x + 2 * p2 * y
         return (radial + 2 * x * x * dradial + 2 * p1 * y + 6 * p2 * x, b, b,
                 radial + 2 * y * y * dradial + 6 * p1 * y + 2 * p2 * x)
@@ -158,20 +165,19 @@ class PolynomialModel(LensModel):
         (``coefficients``) d x_d / d D; the radial factor computed once for all three."""
         X = np.asarray(X, float)
         iz = 1.0 / X[:, 2]
-        xy = X[:, :2] * iz[:, None]
-        x, y = xy[:, 0], xy[:, 1]
+        x, y = X[:, 0] * iz, X[:, 1] * iz
         p1, p2 = self._d8(D)[2:4]
-        terms = self._radial(xy, D)
+        terms = self._radial_of(x, y, D)
         r2, _, radial, _ = terms
         xd = np.empty((len(X), 2))
         xd[:, 0] = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
         xd[:, 1] = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
-        a, b, c, d = self._jacobian_xy(xy, D, terms)
+        a, b, c, d = self._jacobian_of(x, y, D, terms)
         mx, my = -x * iz, -y * iz
         dX = np.empty((len(X), 2, 3))
         dX[:, 0, 0], dX[:, 0, 1], dX[:, 0, 2] = a * iz, b * iz, a * mx + b * my
         dX[:, 1, 0], dX[:, 1, 1], dX[:, 1, 2] = c * iz, d * iz, c * mx + d * my
-        return xd, dX, self._coefficient_jacobian(xy, terms) if coefficients else None
+        return xd, dX, self._coefficient_jacobian(np.stack([x, y], -1), terms) if coefficients else None
 
     def distort_with_jacobians(self, X: np.ndarray, D: np.ndarray
                                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
