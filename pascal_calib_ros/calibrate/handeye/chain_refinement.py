@@ -11,7 +11,7 @@ intrinsics free); their covariance is that of the images alone (the chain rows w
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -19,7 +19,7 @@ from ...geometry.lens import DISTORTION_CHOICES, LensModel
 from ...geometry.transform import Transform
 from ...targets import Target
 from ..covariance import correlation_factor
-from ..lm import LMResult, levenberg_marquardt
+from ..lm import WARM_START, LMResult, levenberg_marquardt
 from ..observations import ViewData
 from ..options import CalibrationOptions
 from ..problem import camera_from_intrinsics, shape_frame_of
@@ -66,6 +66,7 @@ class ChainSolution:
     intrinsics_share: Spread
     arm_share: Spread
     success: bool
+    passes: list[np.ndarray] = field(default_factory=list)  # the solution of each variance-components pass
 
 
 @dataclass
@@ -105,21 +106,28 @@ def _setup(views: list[ViewData], start: ChainStart, opt: CalibrationOptions, he
     return _Setup(prob, chain, x, intr0, free, shape, frame, lens)
 
 
-def _variance_components(s: _Setup, views: list[ViewData], he: HandEyeOptions
-                         ) -> tuple[LMResult, float, np.ndarray]:
+def _variance_components(s: _Setup, views: list[ViewData], he: HandEyeOptions, warm: list[np.ndarray] | None = None
+                         ) -> tuple[LMResult, float, np.ndarray, list[np.ndarray]]:
     """Solve, re-estimating the arm's sigmas (sigma^2 <- sum r^2 / redundancy of the chain rows) and the
-    chain's scale (the edges' s_edge sqrt(kappa)) until they settle; returns the solution, kappa and
-    the pseudo-inverse of the solution's normal matrix. The redundancy of rows g is
-    n_g - trace(A^+ J_g^T J_g) = n_g - sum((J_g A^+) * J_g), from their rows of the Jacobian alone."""
+    chain's scale (the edges' s_edge sqrt(kappa)) until they settle; returns the solution, kappa, the
+    pseudo-inverse of the solution's normal matrix and the solution of every pass. The redundancy of
+    rows g is n_g - trace(A^+ J_g^T J_g) = n_g - sum((J_g A^+) * J_g), from their rows of the Jacobian
+    alone. ``warm``: where each pass starts (a previous call's passes, :data:`~..lm.WARM_START`); the
+    passes and their sigmas are the cold ones, each solve converging to the same point."""
     prob, chain, intr0 = s.prob, s.chain, s.intr0
     sig_r, sig_t = chain.sigma_rot, chain.sigma_trans
     rows_r, rows_t = prob.chain_rows()
     kappa, x = 1.0, s.x
     Ainv: np.ndarray | None = None
+    passes: list[np.ndarray] = []
     for it in range(8 if he.estimate_robot_noise else 2):
         chain.sigma_rot, chain.sigma_trans = sig_r, sig_t
-        sol = levenberg_marquardt(prob, x, intr0, LOSS_SCALE, max_iter=100)
+        if warm is not None and it < len(warm):
+            sol = levenberg_marquardt(prob, warm[it], intr0, LOSS_SCALE, max_iter=100, options=WARM_START)
+        else:
+            sol = levenberg_marquardt(prob, x, intr0, LOSS_SCALE, max_iter=100)
         x, Ainv = sol.x, None
+        passes.append(x)
         # the edge scale (px) and the edges' correlation: what a chain residual of one sigma weighs
         n_rob = prob.n_robust
         s_edge = float(np.sqrt(np.sum(sol.weights[:n_rob] * sol.fun[:n_rob] ** 2) / max(n_rob - len(x), 1)))
@@ -146,7 +154,7 @@ def _variance_components(s: _Setup, views: list[ViewData], he: HandEyeOptions
         if done:
             break
     chain.sigma_rot, chain.sigma_trans = sig_r, sig_t
-    return sol, kappa, np.linalg.pinv(sol.normal_matrix) if Ainv is None else Ainv
+    return sol, kappa, np.linalg.pinv(sol.normal_matrix) if Ainv is None else Ainv, passes
 
 
 def _intrinsics_share(s: _Setup, views: list[ViewData], opt: CalibrationOptions, x: np.ndarray, s2: float,
@@ -188,12 +196,13 @@ def _residual_figures(prob: ChainProblem, f: np.ndarray) -> tuple[float, np.ndar
 
 
 def refine_chain(views: list[ViewData], start: ChainStart, opt: CalibrationOptions, he: HandEyeOptions,
-                 target: Target, origin: tuple[float, float]) -> ChainSolution:
+                 target: Target, origin: tuple[float, float], warm: list[np.ndarray] | None = None) -> ChainSolution:
     """The joint refinement with the robot chain as a measurement (module docstring); the arm's
-    sigmas by variance components (iterated) when ``he.estimate_robot_noise``."""
+    sigmas by variance components (iterated) when ``he.estimate_robot_noise``. ``warm``: each pass's
+    start (:func:`_variance_components`), in the layout of :meth:`~.chain.ChainProblem.pack_chain`."""
     s = _setup(views, start, opt, he, target, origin)
     prob = s.prob
-    sol, kappa, Ainv = _variance_components(s, views, he)
+    sol, kappa, Ainv, passes = _variance_components(s, views, he, warm)
     x, f, w = sol.x, sol.fun, sol.weights
     intr, _, poses, offsets = prob.unpack(x, s.intr0)
     xy = prob.chain_params(x)
@@ -221,14 +230,14 @@ def refine_chain(views: list[ViewData], start: ChainStart, opt: CalibrationOptio
         view_rms=view_rms, edge_residuals=edge_res, corner_residuals=corner_res, robot_error_mm=err_mm,
         robot_error_deg=err_deg, covariance=spread_of(cov, xy, prob.n_base),
         intrinsics_share=spread_of(cov_i, xy, prob.n_base), arm_share=spread_of(cov_a, xy, prob.n_base),
-        success=bool(sol.success))
+        success=bool(sol.success), passes=passes)
 
 
 def refine_chain_xy(views: list[ViewData], start: ChainStart, opt: CalibrationOptions, he: HandEyeOptions,
                     target: Target, origin: tuple[float, float]) -> tuple[Transform, Transform]:
     """X and Y of the joint refinement only (no covariance): what the jackknife re-solves."""
     s = _setup(views, start, opt, he, target, origin)
-    sol, _, _ = _variance_components(s, views, he)
+    sol, _, _, _ = _variance_components(s, views, he)
     xy = s.prob.chain_params(sol.x)
     return Transform.from_rotvec(xy[0:3], xy[3:6]), Transform.from_rotvec(xy[6:9], xy[9:12])
 
