@@ -93,10 +93,12 @@ def motion_pairs(M: list[Transform], C: list[Transform]) -> Motions:
 
 
 def target_from_chain(M: list[Transform], X: Transform, C: list[Transform]) -> Transform:
-    """Y as the mean of M_i X C_i (rotation mean, translation mean)."""
-    Ys = [m @ X @ c for m, c in zip(M, C, strict=True)]
-    rot = Rotation.concatenate([y.rotation for y in Ys]).mean()
-    return Transform(rot, np.mean([y.translation for y in Ys], 0))
+    """Y as the mean of M_i X C_i (rotation mean, translation mean), all views at once."""
+    RM, tM = _stack(M)
+    RC, tC = _stack(C)
+    RMX = RM * X.rotation
+    tMX = RM.apply(X.translation) + tM
+    return Transform((RMX * RC).mean(), np.mean(RMX.apply(tC) + tMX, 0))
 
 
 def hand_eye_closed_form(M: list[Transform], C: list[Transform]) -> tuple[Transform, Transform]:
@@ -180,7 +182,12 @@ def check_robot_poses(poses: list[Transform], mode: str) -> None:
         raise HandEyeError(f"the robot poses differ by pure translations (no relative rotation above "
                            f"{MIN_MOTION_DEG:g} deg): the hand-eye rotation is undetermined; rotate the tool about "
                            "at least two different axes between views")
-    a = axes
+    # the largest angle between two axes (as lines) is at least the largest to the first axis and at most
+    # twice it (the angle between lines is a metric): all pairs only when that does not decide
+    to_first = float(np.degrees(np.arcsin(min(float(np.max(np.linalg.norm(np.cross(axes, axes[0]), axis=1))), 1.0))))
+    if to_first >= MIN_AXIS_SPREAD_DEG:
+        return
+    a = axes if 2 * to_first >= MIN_AXIS_SPREAD_DEG else axes[:1]
     spread = float(np.max(np.linalg.norm(np.cross(a[:, None, :], a[None, :, :]), axis=2)))
     if np.degrees(np.arcsin(min(spread, 1.0))) < MIN_AXIS_SPREAD_DEG:
         raise HandEyeError(f"all robot motions rotate about a single axis (axes within {MIN_AXIS_SPREAD_DEG:g} deg "
