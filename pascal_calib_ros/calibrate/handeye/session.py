@@ -70,12 +70,16 @@ from ..result import CalibrationError, CalibrationResult, ViewReport
 from ..warm import calibrate_session
 from .chain_refinement import ChainSolution, ChainStart, jackknife_spread, refine_chain
 from .closed_form import (
+    Motions,
     chain_disagreement,
     chain_pose,
     check_robot_poses,
     complete_ring_poses,
     hand_eye_closed_form,
+    motion_pairs,
+    park_martin_motions,
     ring_closed_form,
+    target_from_chain,
 )
 from .labelling import label_consistently, target_symmetries
 from .options import HAND_EYE_MODES, MIN_VIEWS, HandEyeError, HandEyeOptions, HandEyeResult
@@ -110,15 +114,25 @@ def _checked(dets: list[Detection], robot_poses: Sequence[Transform | None], mod
 def _closed_form_solver(M: list[Transform], C: list[Transform], axisymmetric: bool
                         ) -> Callable[[list[int]], tuple[Transform, Transform, list[Transform]]]:
     """X, Y and the views' poses from a subset of the views: Park-Martin, or the ring's linear form
-    (each view's rotation about the ring's axis then fixed by the chain)."""
+    (each view's rotation about the ring's axis then fixed by the chain). Park-Martin's motion
+    pairs are formed once for all views; an ascending subset takes the pairs within it (in the
+    same order: the same X as :func:`hand_eye_closed_form` of the subset)."""
+    pairs = motion_pairs(M, C) if not axisymmetric and len(M) > 1 else None
+    i, j = np.triu_indices(len(M), 1)
+
     def solve(sel: list[int]) -> tuple[Transform, Transform, list[Transform]]:
-        Ms = [M[i] for i in sel]
+        Ms, Cs = [M[k] for k in sel], [C[k] for k in sel]
         if axisymmetric:
-            X, Y = ring_closed_form(Ms, np.array([C[i].translation for i in sel]),
-                                    np.array([C[i].R[:, 2] for i in sel]))
-            return X, Y, complete_ring_poses(Ms, X, Y, [C[i] for i in sel])
-        X, Y = hand_eye_closed_form(Ms, [C[i] for i in sel])
-        return X, Y, [C[i] for i in sel]
+            X, Y = ring_closed_form(Ms, np.array([c.translation for c in Cs]), np.array([c.R[:, 2] for c in Cs]))
+            return X, Y, complete_ring_poses(Ms, X, Y, Cs)
+        if pairs is None or list(sel) != sorted(set(sel)):
+            X, Y = hand_eye_closed_form(Ms, Cs)
+            return X, Y, Cs
+        inside = np.zeros(len(M), bool)
+        inside[sel] = True
+        keep = inside[i] & inside[j]
+        X = park_martin_motions(Motions(*(a[keep] for a in (pairs.alpha, pairs.beta, pairs.RA, pairs.tA, pairs.tB))))
+        return X, target_from_chain(Ms, X, Cs), Cs
 
     return solve
 
@@ -166,9 +180,9 @@ def calibrate_hand_eye_warm(dets: list[Detection], robot_poses: Sequence[Transfo
     for i, d in dropped.items():
         reports[idx[i]].used, reports[idx[i]].reason = False, d.reason
     views, M, kept = [views[i] for i in active], [M[i] for i in active], [idx[i] for i in active]
-    passes = start.chain_passes(kept, C0, [reports[k].edge_offset for k in kept], 6 + options.edge_offsets) \
+    warm = start.chain_start(kept, C0, [reports[k].edge_offset for k in kept], 6 + options.edge_offsets) \
         if start else None
-    sol = refine_chain(views, ChainStart(X0, Y0, C0, M, cal), options, he, target, target.local_origin, passes)
+    sol = refine_chain(views, ChainStart(X0, Y0, C0, M, cal), options, he, target, target.local_origin, warm)
     spread = sol.covariance
     if he.jackknife_groups >= 2 and len(views) >= 2 * he.jackknife_groups:
         # the jackknife holds the intrinsics when they are held ("hold"): their share is added after
@@ -188,7 +202,7 @@ def calibrate_hand_eye_warm(dets: list[Detection], robot_poses: Sequence[Transfo
         reports[k].rms, reports[k].edge_offset = float(sol.view_rms[j]), float(sol.offsets[j])
     result = _result(cal, sol, views, reports, warnings=warnings, he=he, per_view=per_view, X0=X0, spread=spread,
                      target=target)
-    return result, HandEyeStart(*given, he, intrinsic, tuple(kept), tuple(C0), tuple(sol.passes))
+    return result, HandEyeStart(*given, he, intrinsic, tuple(kept), tuple(C0), sol.passes[0])
 
 
 def _per_view(reports: list[ViewReport], kept: list[int], dropped: dict[int, Disagreement],
