@@ -58,7 +58,7 @@ class LMOptions:
 
 
 DEFAULT_LM = LMOptions()
-WARM_START = LMOptions(lam0=1e-9, hessian_power=1, min_predicted=1e-12, stall_predicted=1e-9)
+WARM_START = LMOptions(lam0=1e-9, hessian_power=1, min_predicted=1e-12, stall_predicted=1e-7)
 
 
 def levenberg_marquardt(prob: LeastSquaresProblem, x0: np.ndarray, intr0: np.ndarray, loss_scale: float,

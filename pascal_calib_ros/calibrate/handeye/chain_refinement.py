@@ -106,14 +106,15 @@ def _setup(views: list[ViewData], start: ChainStart, opt: CalibrationOptions, he
     return _Setup(prob, chain, x, intr0, free, shape, frame, lens)
 
 
-def _variance_components(s: _Setup, views: list[ViewData], he: HandEyeOptions, warm: list[np.ndarray] | None = None
+def _variance_components(s: _Setup, views: list[ViewData], he: HandEyeOptions, warm: np.ndarray | None = None
                          ) -> tuple[LMResult, float, np.ndarray, list[np.ndarray]]:
     """Solve, re-estimating the arm's sigmas (sigma^2 <- sum r^2 / redundancy of the chain rows) and the
     chain's scale (the edges' s_edge sqrt(kappa)) until they settle; returns the solution, kappa, the
     pseudo-inverse of the solution's normal matrix and the solution of every pass. The redundancy of
     rows g is n_g - trace(A^+ J_g^T J_g) = n_g - sum((J_g A^+) * J_g), from their rows of the Jacobian
-    alone. ``warm``: where each pass starts (a previous call's passes, :data:`~..lm.WARM_START`); the
-    passes and their sigmas are the cold ones, each solve converging to the same point."""
+    alone. ``warm``: where the first pass starts (a previous call's first pass), every pass solved
+    with :data:`~..lm.WARM_START`; the passes and their sigmas are the cold ones, each solve
+    converging to the same point."""
     prob, chain, intr0 = s.prob, s.chain, s.intr0
     sig_r, sig_t = chain.sigma_rot, chain.sigma_trans
     rows_r, rows_t = prob.chain_rows()
@@ -122,8 +123,8 @@ def _variance_components(s: _Setup, views: list[ViewData], he: HandEyeOptions, w
     passes: list[np.ndarray] = []
     for it in range(8 if he.estimate_robot_noise else 2):
         chain.sigma_rot, chain.sigma_trans = sig_r, sig_t
-        if warm is not None and it < len(warm):
-            sol = levenberg_marquardt(prob, warm[it], intr0, LOSS_SCALE, max_iter=100, options=WARM_START)
+        if warm is not None:
+            sol = levenberg_marquardt(prob, x if it else warm, intr0, LOSS_SCALE, max_iter=100, options=WARM_START)
         else:
             sol = levenberg_marquardt(prob, x, intr0, LOSS_SCALE, max_iter=100)
         x, Ainv = sol.x, None
@@ -196,10 +197,10 @@ def _residual_figures(prob: ChainProblem, f: np.ndarray) -> tuple[float, np.ndar
 
 
 def refine_chain(views: list[ViewData], start: ChainStart, opt: CalibrationOptions, he: HandEyeOptions,
-                 target: Target, origin: tuple[float, float], warm: list[np.ndarray] | None = None) -> ChainSolution:
+                 target: Target, origin: tuple[float, float], warm: np.ndarray | None = None) -> ChainSolution:
     """The joint refinement with the robot chain as a measurement (module docstring); the arm's
-    sigmas by variance components (iterated) when ``he.estimate_robot_noise``. ``warm``: each pass's
-    start (:func:`_variance_components`), in the layout of :meth:`~.chain.ChainProblem.pack_chain`."""
+    sigmas by variance components (iterated) when ``he.estimate_robot_noise``. ``warm``: the first
+    pass's start (:func:`_variance_components`), in the layout of :meth:`~.chain.ChainProblem.pack_chain`."""
     s = _setup(views, start, opt, he, target, origin)
     prob = s.prob
     sol, kappa, Ainv, passes = _variance_components(s, views, he, warm)
