@@ -143,10 +143,10 @@ def ring_closed_form(M: list[Transform], centres: np.ndarray, normals: np.ndarra
     tM = np.array([m.translation for m in M]).reshape(-1, 3)
 
     def res(p: np.ndarray) -> np.ndarray:
-        # per view (M_k X c_k - p, L (R_Mk R_X n_k - d)), all views at once
-        X, pc, d = unpack(p)
-        RX = X.R
-        pts = np.einsum("kij,kj->ki", RM, centres @ RX.T + X.translation) + tM - pc
+        # per view (M_k X c_k - p, L (R_Mk R_X n_k - d)), all views at once (unpack's X without a Transform)
+        RX, pc = Rotation.from_rotvec(p[:3]).as_matrix(), p[6:9]
+        d = np.array([np.sin(p[9]) * np.cos(p[10]), np.sin(p[9]) * np.sin(p[10]), np.cos(p[9])])
+        pts = np.einsum("kij,kj->ki", RM, centres @ RX.T + p[3:6]) + tM - pc
         nrm = length * (np.einsum("kij,kj->ki", RM, normals @ RX.T) - d)
         return np.concatenate([pts, nrm], 1).ravel()
 
