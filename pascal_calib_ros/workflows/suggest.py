@@ -175,22 +175,27 @@ class WarmArmSuggestions:
     """:func:`suggest_for_arm` for a session that grows a view at a time (the node's ``~/suggest``
     after every capture): each call starts from the previous call's estimate (:func:`arm_suggestions`);
     a call whose views are not the previous ones plus new ones, or with other options, is cold.
-    Thread-safe."""
+    Thread-safe: calls run one at a time; :meth:`reset` does not wait for a running one (its estimate
+    is then not kept)."""
 
     def __init__(self) -> None:
         self._start: HandEyeStart | None = None
+        self._resets = 0
         self._lock = threading.Lock()
 
     def suggest(self, dets: list[Detection], robot: list[Transform | None], target: Target, opt: SuggestOptions,
                 frames: tuple[str, str]) -> dict[str, Any]:
         with self._lock:
-            doc, self._start = arm_suggestions(dets, robot, target, opt, frames, self._start)
+            resets = self._resets
+            doc, nxt = arm_suggestions(dets, robot, target, opt, frames, self._start)
+            if resets == self._resets:
+                self._start = nxt
             return doc
 
     def reset(self) -> None:
         """Forget the previous estimate (the next call is cold)."""
-        with self._lock:
-            self._start = None
+        self._resets += 1
+        self._start = None
 
 
 def write_next_yaml(path: str | Path, doc: dict[str, Any]) -> Path:
