@@ -138,16 +138,6 @@ def row_variances(prob: Problem, views: list[ViewData], f: np.ndarray, psi: np.n
     return var
 
 
-def scaled_pinv(A: np.ndarray) -> np.ndarray:
-    """A^+ of a normal matrix computed on its Jacobi-scaled form, D^-1 (D^-1 A D^-1)^+ D^-1 with
-    D = sqrt(diag A): the same inverse, but pixels, radians and metres in one matrix no longer set
-    its condition (about 1e10 unscaled), so that its last bits, which the BLAS kernel decides, stay
-    in the last bits of the inverse (unscaled, 1e-5 of a sigma moved between kernels)."""
-    d = np.sqrt(np.diag(A))
-    d = np.where(d > 0, d, 1.0)
-    return np.linalg.pinv(A / d[:, None] / d[None, :]) / d[:, None] / d[None, :]
-
-
 def sandwich_covariance(prob: LeastSquaresProblem, f: np.ndarray, Jg: np.ndarray, Jv: np.ndarray, dpsi: np.ndarray,
                         var: np.ndarray) -> np.ndarray:
     """A^-1 B A^-1 over all parameters: A = J^T diag(psi') J, B = J^T diag(var) J (module docstring;
@@ -157,5 +147,5 @@ def sandwich_covariance(prob: LeastSquaresProblem, f: np.ndarray, Jg: np.ndarray
     v[:len(var)] = var
     A, _ = prob.normal_equations(f, Jg, Jv, dpsi)
     B, _ = prob.normal_equations(f, Jg, Jv, v)
-    Ainv = scaled_pinv(A)
+    Ainv = np.linalg.pinv(A)
     return Ainv @ B @ Ainv

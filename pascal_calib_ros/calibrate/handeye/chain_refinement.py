@@ -18,7 +18,7 @@ import numpy as np
 from ...geometry.lens import DISTORTION_CHOICES, LensModel
 from ...geometry.transform import Transform
 from ...targets import Target
-from ..covariance import correlation_factor, scaled_pinv
+from ..covariance import correlation_factor
 from ..lm import WARM_START, LMResult, levenberg_marquardt
 from ..observations import ViewData
 from ..options import CalibrationOptions
@@ -138,7 +138,7 @@ def _variance_components(s: _Setup, views: list[ViewData], he: HandEyeOptions, w
                 kappa, chain.scale = kappa_new, max(s_edge * np.sqrt(kappa_new), 1e-3)
                 continue
             break
-        Ainv = scaled_pinv(sol.normal_matrix)
+        Ainv = np.linalg.pinv(sol.normal_matrix)
         Jg, Jv = sol.jacobian if sol.jacobian is not None else prob.evaluate(x, intr0)[1:]
         new = []
         for rows, sig in ((rows_r, sig_r), (rows_t, sig_t)):
@@ -155,7 +155,7 @@ def _variance_components(s: _Setup, views: list[ViewData], he: HandEyeOptions, w
         if done:
             break
     chain.sigma_rot, chain.sigma_trans = sig_r, sig_t
-    return sol, kappa, scaled_pinv(sol.normal_matrix) if Ainv is None else Ainv, passes
+    return sol, kappa, np.linalg.pinv(sol.normal_matrix) if Ainv is None else Ainv, passes
 
 
 def _intrinsics_share(s: _Setup, views: list[ViewData], opt: CalibrationOptions, x: np.ndarray, s2: float,
@@ -173,8 +173,8 @@ def _intrinsics_share(s: _Setup, views: list[ViewData], opt: CalibrationOptions,
     wi[full.n_robust:] = 0.0
     Ai, _ = full.normal_equations(ff, Jg_f, Jv_f, wi)
     nf = len(full.free)
-    cov_th = scaled_pinv(Ai)[:nf, :nf] * s2 * kappa
-    S = -scaled_pinv(Af[nf:, nf:]) @ Af[nf:, :nf]
+    cov_th = np.linalg.pinv(Ai)[:nf, :nf] * s2 * kappa
+    S = -np.linalg.pinv(Af[nf:, nf:]) @ Af[nf:, :nf]
     std = {full.names[i]: float(np.sqrt(max(cov_th[k, k], 0.0))) for k, i in enumerate(full.free)}
     return S @ cov_th @ S.T, std
 

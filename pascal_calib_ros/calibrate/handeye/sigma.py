@@ -10,7 +10,6 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ...geometry.transform import Transform
-from ..covariance import scaled_pinv
 from .chain import ChainProblem
 from .closed_form import (
     chain_pose,
@@ -102,7 +101,7 @@ def arm_field_share(prob: ChainProblem, x: np.ndarray, intr0: np.ndarray, A: np.
         d = (prob.chain_residuals(xy, poses, moved[0]) - prob.chain_residuals(xy, poses, moved[1])) / (2 * h)
         for i in range(nv):
             D[6 * i:6 * i + 6, 3 * i + a] = d[i]
-    S = -(scaled_pinv(A) if A_pinv is None else A_pinv) @ (prob.chain_dense_jacobian(xy, poses).T @ D)
+    S = -(np.linalg.pinv(A) if A_pinv is None else A_pinv) @ (prob.chain_dense_jacobian(xy, poses).T @ D)
     cov_e = arm_field_covariance(np.array([g.translation for g in G]), he.arm_accuracy_mm / 1000,
                                  he.arm_accuracy_length)
     return S @ cov_e @ S.T
