@@ -36,27 +36,31 @@ EDGE_MAX_LAG = 10
 def lag_factor(chunks: list[np.ndarray], circular: bool, max_lag: int = 40) -> float:
     """1 + 2 sum_k rho_k of residual sequences (pooled lag-k autocorrelations, summed while positive:
     Geyer's initial positive sequence): the factor by which correlated neighbours reduce the
-    effective number of independent residuals."""
+    effective number of independent residuals. The lag-k products of all sequences at once (each
+    sequence's index shifted by k within it, around it when ``circular``)."""
     chunks = [c for c in chunks if len(c) >= 4]
     if not chunks:
         return 1.0
-    r0 = sum(float(c @ c) for c in chunks)
-    n0 = sum(len(c) for c in chunks)
+    a = np.concatenate(chunks)
+    lengths = np.array([len(c) for c in chunks])
+    r0 = float(np.sum(a * a))  # elementwise sums, not BLAS: the same last bits under every kernel
     if r0 <= 0:
         return 1.0
-    var = r0 / n0
+    var = r0 / len(a)
+    start = np.repeat(np.cumsum(lengths) - lengths, lengths)  # each residual's sequence start and length
+    length = np.repeat(lengths, lengths)
+    pos = np.arange(len(a)) - start
     kappa = 1.0
     for k in range(1, max_lag + 1):
-        num, cnt = 0.0, 0
-        for c in chunks:
-            if len(c) < 2 * k + 2:
-                continue
-            if circular:
-                num += float(c @ np.roll(c, -k))
-                cnt += len(c)
-            else:
-                num += float(c[:-k] @ c[k:])
-                cnt += len(c) - k
+        use = length >= 2 * k + 2
+        if circular:
+            cnt = int(np.sum(lengths[lengths >= 2 * k + 2]))
+            idx = np.flatnonzero(use)
+            num = float(np.sum(a[idx] * a[start[idx] + (pos[idx] + k) % length[idx]]))
+        else:
+            cnt = int(np.sum(lengths[lengths >= 2 * k + 2] - k))
+            idx = np.flatnonzero(use & (pos + k < length))
+            num = float(np.sum(a[idx] * a[idx + k]))
         if cnt == 0:
             break
         rho = num / cnt / var

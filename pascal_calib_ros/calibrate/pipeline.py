@@ -6,7 +6,7 @@ kept as reasons beside the views rather than raised.
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -40,8 +40,31 @@ def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions
     calibration of checkerboard corners), the refinement (outlier observations and views dropped),
     views that had no start posed with the refined camera and added, the target's shape if asked
     for."""
+    prep = prepare(dets, target, options)
+    first = first_refinement(dets, target, prep)
+    return first if isinstance(first, CalibrationResult) else finish(dets, target, prep, first)
+
+
+@dataclass
+class Prepared:
+    """The checked options, a report per view and the indices of the usable views."""
+
+    opt: CalibrationOptions
+    reports: list[ViewReport]
+    usable: list[int]
+
+
+def prepare(dets: list[Detection], target: Target, options: CalibrationOptions) -> Prepared:
+    """The options checked against the target and the views checked (a CalibrationError if they cannot work)."""
     opt = _checked_options(options, target)
     reports, usable = _checked_views(dets, opt)
+    return Prepared(opt, reports, usable)
+
+
+def first_refinement(dets: list[Detection], target: Target, prep: Prepared) -> Refined | CalibrationResult:
+    """The closed-form start and the first refinement of the views it posed; the calibration itself
+    when there is no refinement (``--no-refine``, OpenCV's answer as it stands)."""
+    opt, reports, usable = prep.opt, prep.reports, prep.usable
     w, h = dets[0].width, dets[0].height
     lens = DISTORTION_CHOICES[opt.distortion][0]
     if opt.method == "zhang":
@@ -59,16 +82,45 @@ def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions
                                  std={}, degeneracy_ratio=start.sol.degeneracy_ratio, views=reports,
                                  warnings=start.warnings, K_initial=start.sol.K, refined=False, distortion_model="none",
                                  std_model="none: the closed form has no covariance")
-    origin = target.local_origin
-    dof = 6 if (len({c.center for c in target.circles}) > 1 or target.checkerboards) else 5
-    views, poses0, idx = _start_poses(dets, start, target, opt, reports, origin, dof)
+    dof = pose_dof(target)
+    views, poses0, idx = _start_poses(dets, start, target, opt, reports, target.local_origin, dof)
     if len(idx) < opt.min_views:
         raise CalibrationError(f"only {len(idx)} view(s) gave a pose; need {opt.min_views}")
     D0 = _start_distortion(dets, start, opt, lens.n, w, h)
     res = _refine(views, start.sol.K, D0, poses0, dof, opt)
-    res, idx = _drop_outlier_views(res, idx, reports, opt, dof)
+    return Refined(res, idx, start.sol.K, start.sol.degeneracy_ratio, list(start.warnings))
+
+
+def pose_dof(target: Target) -> int:
+    """Parameters of a view's pose: 6, or 5 for a target with a single circle centre (its rotation
+    about the ring's axis unobservable)."""
+    return 6 if (len({c.center for c in target.circles}) > 1 or target.checkerboards) else 5
+
+
+@dataclass
+class Refined:
+    """A first refinement of the session and what the result reports of its start: the refinement,
+    the session's index of each of its views, the closed form's K, its degeneracy figure and
+    warnings."""
+
+    res: RefineResult
+    idx: list[int]
+    K_initial: np.ndarray
+    degeneracy_ratio: float
+    start_warnings: list[str]
+
+
+def finish(dets: list[Detection], target: Target, prep: Prepared, first: Refined) -> CalibrationResult:
+    """The calibration from a first refinement: outlier views dropped, views without a start posed
+    with the refined camera and added, the target's shape if asked for, the checks of the result.
+    The result's refinement is ``first.res`` itself when none of these refitted."""
+    opt, reports, usable = prep.opt, prep.reports, prep.usable
+    w, h = dets[0].width, dets[0].height
+    lens = DISTORTION_CHOICES[opt.distortion][0]
+    origin, dof = target.local_origin, pose_dof(target)
+    res, idx = _drop_outlier_views(first.res, first.idx, reports, opt, dof)
     res, idx = _add_views_without_start(res, idx, dets, usable, target, opt, reports=reports, origin=origin, dof=dof)
-    warnings = list(start.warnings)
+    warnings = list(first.start_warnings)
     shape_effect: dict[str, float] = {}
     if opt.target_shape:
         res, shape_effect = _estimate_target_shape(res, target, opt, origin, dof)
@@ -88,7 +140,7 @@ def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions
     views = res.views
     return CalibrationResult(
         K=res.K, D=res.D, width=w, height=h, method=opt.method, rms=res.rms, std=res.std,
-        degeneracy_ratio=start.sol.degeneracy_ratio, views=reports, warnings=warnings, K_initial=start.sol.K,
+        degeneracy_ratio=first.degeneracy_ratio, views=reports, warnings=warnings, K_initial=first.K_initial,
         refined=True, distortion_model=opt.distortion, poses=res.poses, edge_points=[v.points for v in views],
         edge_residuals=res.residuals, edge_circles=[v.circle_ids for v in views],
         circle_names=[c.feature for c in target.circles], shape=res.shape if opt.target_shape else {},
@@ -109,10 +161,11 @@ def std_model(res: RefineResult) -> str:
 
 
 def _refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[np.ndarray], dof: int,
-            opt: CalibrationOptions, **shape: Any) -> RefineResult:
-    """:func:`refine` with the options' distortion, skew, offsets, loss and outlier rejection."""
+            opt: CalibrationOptions, **more: Any) -> RefineResult:
+    """:func:`refine` with the options' distortion, skew, offsets, loss and outlier rejection (``more``:
+    its further keywords)."""
     return refine(views, K0, D0, poses0, dof, opt.distortion, opt.zero_skew, opt.edge_offsets,
-                  loss_scale=LOSS_SCALES[opt.loss], outlier_k=opt.outlier_k, **shape)
+                  loss_scale=LOSS_SCALES[opt.loss], outlier_k=opt.outlier_k, **more)
 
 
 def _report_views(res: RefineResult, idx: list[int], dets: list[Detection], reports: list[ViewReport]) -> None:

@@ -30,11 +30,17 @@ assembled view by view (each view's parameters touch its rows only).
 from __future__ import annotations
 
 import itertools
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
-from ..geometry.camera import INTRINSIC_BASE, pixels_to_normalized, project_with_jacobians
+from ..geometry.camera import (
+    INTRINSIC_BASE,
+    pixels_to_normalized,
+    project_with_jacobians,
+    project_with_point_jacobian,
+)
 from ..geometry.lens import DISTORTION_CHOICES, PLUMB_BOB, LensModel
 from .observations import ViewData
 
@@ -76,6 +82,25 @@ def shape_frame_of(points: np.ndarray) -> tuple[float, float, float, float]:
     return float((lo[0] + hi[0]) / 2), float((lo[1] + hi[1]) / 2), float(half[0]), float(half[1])
 
 
+@dataclass(frozen=True)
+class EdgeFit:
+    """The edge rows at one parameter vector: residuals, and what their Jacobian needs (per point
+    the outward unit normal in the image, the foot point on the printed sheet (x, y on a flat one)
+    and in the camera frame, dq/dX there, d printed point / d shape)."""
+
+    f: np.ndarray
+    nrm: np.ndarray
+    Q: np.ndarray
+    Xc: np.ndarray
+    dqdX: np.ndarray
+    dPds: np.ndarray
+
+
+def _times(J: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rows of J (N, 2, 3) times the vectors v (N, 3): (N, 2)."""
+    return J[:, :, 0] * v[:, 0, None] + J[:, :, 1] * v[:, 1, None] + J[:, :, 2] * v[:, 2, None]
+
+
 class Problem:
     """Parameter layout, residuals and Jacobian of one refinement.
 
@@ -112,6 +137,8 @@ class Problem:
         self.frame = shape_frame or shape_frame_of(np.concatenate([self.centers, self.corner_obj]))
         rows = np.concatenate([self.view_of_pt, np.repeat(self.view_of_corner, 2)])
         self.rows_of_view = [np.flatnonzero(rows == i) for i in range(self.nv)]
+        self._ray_cache: tuple[bytes, np.ndarray] | None = None
+        self._fit_cache: tuple[bytes, EdgeFit] | None = None
 
     # -- parameter packing -------------------------------------------------------------
     def pack(self, intr: np.ndarray, poses: list[np.ndarray], offsets: np.ndarray,
@@ -160,12 +187,17 @@ class Problem:
     def evaluate(self, x: np.ndarray, intr0: np.ndarray, jac: bool = True
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Residuals f (rows), and if ``jac``: dF/d globals (rows, ng) and dF/d own view block
-        (rows, per_view); rows are the edge points, then x and y of every corner."""
+        (rows, per_view); rows are the edge points, then x and y of every corner. The edge rows'
+        geometry at the last x is kept: the Jacobian at an x whose residuals were just evaluated
+        (Levenberg-Marquardt's accepted step) costs only its assembly."""
         intr, shape, poses, offsets = self.unpack(x, intr0)
         K, D = camera_from_intrinsics(intr)
         R, dR, t = self.rotations(poses)
         if self.n_edge:
-            f, Jg, Jv = self._edges(K, D, R, dR, t, shape, offsets, jac)
+            fit = self._edge_fit(x, intr0, K, D, R, t, shape, offsets)
+            f = fit.f
+            Jg, Jv = self._edge_jacobian(fit, K, D, R, dR) if jac else (np.zeros((0, self.ng)),
+                                                                       np.zeros((0, self.per_view)))
         else:  # checkerboard corners only
             f, Jg, Jv = np.zeros(0), np.zeros((0, self.ng)), np.zeros((0, self.per_view))
         if self.n_corner:
@@ -210,66 +242,102 @@ class Problem:
         """Rows of A (n, ..., 3) times their view's matrix M[v] (3, k): one product per view (the
         edge rows of a view are contiguous)."""
         out = np.empty((*A.shape[:-1], M.shape[-1]))
+        flat, out_flat = A.reshape(-1, A.shape[-1]), out.reshape(-1, M.shape[-1])
+        k = int(np.prod(A.shape[1:-1]))  # rows of the flattened array per point
         for v, sl in enumerate(self.edge_slices):
-            out[sl] = A[sl] @ M[v]
+            out_flat[k * sl.start:k * sl.stop] = flat[k * sl.start:k * sl.stop] @ M[v]
         return out
 
-    def _edges(self, K: np.ndarray, D: np.ndarray, R: np.ndarray, dR: np.ndarray, t: np.ndarray,
-               shape: np.ndarray, offsets: np.ndarray, jac: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _rays(self, K: np.ndarray, D: np.ndarray) -> np.ndarray:
+        """Unit rays of the edge points for the camera (K, D); kept while K and D stay (held
+        intrinsics)."""
+        key = K.tobytes() + np.asarray(D, float).tobytes()
+        if self._ray_cache is None or self._ray_cache[0] != key:
+            self._ray_cache = (key, self.lens.undistort(pixels_to_normalized(self.pts, K), D, strict=False))
+        return self._ray_cache[1]
+
+    def _edge_fit(self, x: np.ndarray, intr0: np.ndarray, K: np.ndarray, D: np.ndarray, R: np.ndarray,
+                  t: np.ndarray, shape: np.ndarray, offsets: np.ndarray) -> EdgeFit:
+        """The edge rows at x (module docstring): each point's foot point on the imaged circle, the
+        outward normal there and the signed distance; the last one is kept (:meth:`evaluate`). A flat
+        sheet (no shape parameter) in the board's x, y only."""
+        key = x.tobytes() + intr0.tobytes()
+        if self._fit_cache is not None and self._fit_cache[0] == key:
+            return self._fit_cache[1]
         vi = self.view_of_pt
+        flat = not self.shape_idx
         Rt = np.transpose(R, (0, 2, 1))
+        Rb = Rt[:, :2, :] if flat else Rt  # board coordinates -> camera directions, as rows
         tv = t[vi]
-        ctr = self.board(self.centers, shape)[0]
-        rays = self.lens.undistort(pixels_to_normalized(self.pts, K), D, strict=False)
-        n = R[:, :, 2][vi]
-        lam = (np.sum(n * tv, 1) + ctr[:, 2]) / np.sum(n * rays, 1)
-        X = rays * lam[:, None]
-        P = self._per_view(X - tv, R)  # R^T (X - t), as rows
-        rel = P[:, :2] - ctr[:, :2]
+        rays = self._rays(K, D)
+        # the ray's intersection with the plane of its circle (z = 0, or the warped circle's height)
+        lam = np.sum(R[:, :, 2] * t, 1)[vi] / self._per_view(rays, R[:, :, 2:])[:, 0]
+        ctr = self.centers
+        if not flat:
+            ctr3 = self.board(self.centers, shape)[0]
+            lam = (np.sum(R[:, :, 2] * t, 1)[vi] + ctr3[:, 2]) / self._per_view(rays, R[:, :, 2:])[:, 0]
+            ctr = ctr3[:, :2]
+        rel = self._per_view(rays * lam[:, None] - tv, R[:, :, :2]) - ctr  # R^T (X - t), as rows
         rho = np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1e-12)
         u = rel / rho[:, None]
         r = self.radii[:, None]
         s1 = 1 + shape[0]
+        dPds = np.zeros((0, 3, 3))
         for step in range(2):
             # the circle point at angle u, drawn on the printed sheet (each point at its own z)
-            Q, dPds, slope = self.board(self.centers + r * u, shape)
-            q, dqdX, dqdI = project_with_jacobians(self._per_view(Q, Rt) + tv, K, D, self.lens)
-            dqdP = self._per_view(dqdX, R)  # image motion per board-frame motion
-            tang = np.stack([-u[:, 1], s1 * u[:, 0], slope[:, 0] * -u[:, 1] + slope[:, 1] * u[:, 0]], 1)
-            ti = np.einsum("nij,nj->ni", dqdP, tang)  # image of the circle's tangent (per radian / r)
+            if flat:
+                Q, tang = self.centers + r * u, np.stack([-u[:, 1], u[:, 0]], 1)
+            else:
+                Q, dPds, slope = self.board(self.centers + r * u, shape)
+                tang = np.stack([-u[:, 1], s1 * u[:, 0], slope[:, 0] * -u[:, 1] + slope[:, 1] * u[:, 0]], 1)
+            Xc = self._per_view(Q, Rb) + tv
+            q, dqdX = project_with_point_jacobian(Xc, K, D, self.lens)
+            ti = _times(dqdX, self._per_view(tang, Rb))  # image of the circle's tangent (per radian / r)
             if step:
                 break
             # slide Q along the circle to the image foot point of u (one Gauss-Newton step on the
             # angle): the radial point of the plane is not the nearest in a perspective image, and
             # the Jacobian below is exact only at the foot point
-            dq = ti * r
-            dth = np.sum(dq * (self.pts - q), 1) / np.maximum(np.sum(dq * dq, 1), 1e-30)
+            dq, e = ti * r, self.pts - q
+            dth = (dq[:, 0] * e[:, 0] + dq[:, 1] * e[:, 1]) / np.maximum(dq[:, 0] * dq[:, 0] + dq[:, 1] * dq[:, 1],
+                                                                        1e-30)
             c, s_ = np.cos(dth), np.sin(dth)
             u = np.stack([c * u[:, 0] - s_ * u[:, 1], s_ * u[:, 0] + c * u[:, 1]], 1)
-        radial = np.stack([u[:, 0], s1 * u[:, 1], slope[:, 0] * u[:, 0] + slope[:, 1] * u[:, 1]], 1)
-        ri = np.einsum("nij,nj->ni", dqdP, radial)  # image of the outward radius
+        radial = u if flat else np.stack([u[:, 0], s1 * u[:, 1], slope[:, 0] * u[:, 0] + slope[:, 1] * u[:, 1]], 1)
+        ri = _times(dqdX, self._per_view(radial, Rb))  # image of the outward radius
         ti /= np.maximum(np.hypot(ti[:, 0], ti[:, 1]), 1e-15)[:, None]
         orient = np.sign(ri[:, 0] * ti[:, 1] - ri[:, 1] * ti[:, 0])
         nrm = np.stack([ti[:, 1], -ti[:, 0]], 1) * orient[:, None]  # outward unit normal in the image
-        f = np.sum(nrm * (self.pts - q), 1) - self.signs * offsets[vi]
-        if not jac:
-            return f, np.zeros((0, self.ng)), np.zeros((0, self.per_view))
-        h = np.einsum("ni,nij->nj", nrm, dqdX)  # n^T dq/dX
-        Jg = np.zeros((len(f), self.ng))
+        e = self.pts - q
+        f = (nrm[:, 0] * e[:, 0] + nrm[:, 1] * e[:, 1]) - self.signs * offsets[vi]
+        fit = EdgeFit(f, nrm, Q, Xc, dqdX, dPds)
+        self._fit_cache = (key, fit)
+        return fit
+
+    def _edge_jacobian(self, fit: EdgeFit, K: np.ndarray, D: np.ndarray, R: np.ndarray, dR: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray]:
+        """dF/d globals and dF/d own view of the edge rows at ``fit``: -n^T dq/d theta at the foot point."""
+        nrm = fit.nrm
+        h = nrm[:, 0, None] * fit.dqdX[:, 0] + nrm[:, 1, None] * fit.dqdX[:, 1]  # n^T dq/dX
+        Jg = np.zeros((len(fit.f), self.ng))
         nf = len(self.free)
-        Jg[:, :nf] = -np.einsum("ni,nij->nj", nrm, dqdI[:, :, self.free])
+        if nf:
+            dqdI = project_with_jacobians(fit.Xc, K, D, self.lens)[2][:, :, self.free]
+            Jg[:, :nf] = -(nrm[:, 0, None] * dqdI[:, 0] + nrm[:, 1, None] * dqdI[:, 1])
         if self.shape_idx:
             g = self._per_view(h, R)  # n^T dq/dP
-            Jg[:, nf:self.n_base] = -np.einsum("nk,nks->ns", g, dPds[:, :, self.shape_idx])
-        Jv = np.empty((len(f), self.per_view))
+            Jg[:, nf:self.n_base] = -np.einsum("nk,nks->ns", g, fit.dPds[:, :, self.shape_idx])
+        Jv = np.empty((len(fit.f), self.per_view))
         # n^T dq/dX . (dR/drv_k Q): the outer product h Q^T against each view's dR/drv_k
-        nr = self.dof - 3
-        Jv[:, :nr] = -self._per_view((h[:, :, None] * Q[:, None, :]).reshape(-1, 1, 9),
-                                     dR.reshape(len(dR), nr, 9).transpose(0, 2, 1))[:, 0, :]
-        Jv[:, self.dof - 3: self.dof] = -h
+        nr, kq = self.dof - 3, fit.Q.shape[1]  # Q in the board's x, y (flat) or x, y, z
+        hQ = (h[:, :, None] * fit.Q[:, None, :]).reshape(-1, 3 * kq)
+        dRt = dR[..., :kq].reshape(len(dR), nr, 3 * kq).transpose(0, 2, 1)
+        for v, sl in enumerate(self.edge_slices):
+            Jv[sl, :nr] = -(hQ[sl] @ dRt[v])
+        Jv[:, nr:self.dof] = -h
         if self.use_offsets:
             Jv[:, self.dof] = -self.signs
-        return f, Jg, Jv
+        return Jg, Jv
 
     def _corners(self, K: np.ndarray, D: np.ndarray, R: np.ndarray, dR: np.ndarray, t: np.ndarray,
                  shape: np.ndarray, jac: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

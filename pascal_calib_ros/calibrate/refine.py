@@ -12,7 +12,7 @@ import numpy as np
 from ..geometry.camera import Camera
 from ..geometry.lens import DISTORTION_CHOICES
 from .covariance import correlation_factors, row_variances, sandwich_covariance
-from .lm import LMResult, levenberg_marquardt
+from .lm import DEFAULT_LM, LMOptions, LMResult, levenberg_marquardt
 from .observations import ViewData
 from .problem import SHAPE_NAMES, Problem, camera_from_intrinsics, intrinsic_names
 
@@ -48,6 +48,9 @@ class RefineResult:
     # the observations the solution rests on (outliers removed; their counts in each ViewData)
     views: list[ViewData] = field(default_factory=list)
     robust: bool = True  # soft-L1 loss (False: least squares)
+    # the first round, before any observation was rejected: its observations and its solution (a warm start's)
+    first_views: list[ViewData] = field(default_factory=list)
+    first_x: np.ndarray | None = None
 
     def camera_of(self, x: np.ndarray) -> Camera:
         """The camera of a parameter vector of :attr:`problem`."""
@@ -111,8 +114,8 @@ def outlier_masks(prob: Problem, f: np.ndarray, k: float) -> list[tuple[np.ndarr
 def refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[np.ndarray], dof: int,
            distortion: str = "plumb_bob", zero_skew: bool = True, use_offsets: bool = True,
            loss_scale: float = 0.3, max_iter: int = 60, shape: tuple[str, ...] = (),
-           shape_frame: tuple[float, float, float, float] | None = None, outlier_k: float = OUTLIER_K
-           ) -> RefineResult:
+           shape_frame: tuple[float, float, float, float] | None = None, outlier_k: float = OUTLIER_K,
+           x0: np.ndarray | None = None, lm: LMOptions = DEFAULT_LM) -> RefineResult:
     """Robust least squares over K, D, poses, offsets and the named shape parameters (module
     docstring); observations beyond ``outlier_k`` robust standard deviations of their view are
     rejected and the fit repeated until none is left (0: keep every observation). A view may have
@@ -120,7 +123,8 @@ def refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[n
 
     ``shape_frame`` is (x mid, y mid, x half-width, y half-width) of the warp in the local frame
     (default: the extent of the observed circles); the shape starts flat and true to scale, and
-    shape parameters not named stay so."""
+    shape parameters not named stay so. ``x0``: the start as a whole (:meth:`Problem.pack`'s layout; a
+    warm start, with ``lm`` :data:`~.lm.WARM_START`) instead of K0, D0, the poses and zero offsets."""
     if distortion not in DISTORTION_CHOICES:
         raise ValueError(f"unknown distortion model {distortion!r}: {', '.join(DISTORTION_CHOICES)}")
     lens, free_d = DISTORTION_CHOICES[distortion]
@@ -137,16 +141,19 @@ def refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[n
     for name in names[5:]:
         if name not in free:  # coefficients the model does not estimate are held at zero
             intr0[names.index(name)] = 0.0
-    x0 = prob.pack(intr0, poses0, np.zeros(len(views)))
-    sol = levenberg_marquardt(prob, x0, intr0, loss_scale, max_iter=max_iter)
+    start = prob.pack(intr0, poses0, np.zeros(len(views))) if x0 is None else np.asarray(x0, float)
+    sol = levenberg_marquardt(prob, start, intr0, loss_scale, max_iter=max_iter, options=lm)
+    first_views, first_x = views, sol.x
     for _ in range(MAX_REJECTION_ROUNDS if outlier_k > 0 else 0):
         masks = outlier_masks(prob, sol.fun, outlier_k)
         if not any(e.any() or c.any() for e, c in masks):
             break
         views = [v.without(e, c) for v, (e, c) in zip(views, masks, strict=True)]
         prob = Problem(views, dof, free, use_offsets, loss_scale, tuple(shape), prob.frame, lens)
-        sol = levenberg_marquardt(prob, sol.x, intr0, loss_scale, max_iter=max_iter)
-    return _refine_result(prob, sol, intr0, loss_scale)
+        sol = levenberg_marquardt(prob, sol.x, intr0, loss_scale, max_iter=max_iter, options=lm)
+    res = _refine_result(prob, sol, intr0, loss_scale)
+    res.first_views, res.first_x = first_views, first_x
+    return res
 
 
 def _refine_result(prob: Problem, sol: LMResult, intr0: np.ndarray, loss_scale: float) -> RefineResult:
@@ -176,7 +183,7 @@ def _refine_result(prob: Problem, sol: LMResult, intr0: np.ndarray, loss_scale: 
     kappa = correlation_factors(prob, views, sol.fun)
     names = prob.names
     try:
-        _, Jg, Jv = prob.evaluate(sol.x, intr0)
+        Jg, Jv = sol.jacobian if sol.jacobian is not None else prob.evaluate(sol.x, intr0)[1:]
         psi, dpsi = prob.loss_derivatives(sol.fun, loss_scale)
         var = row_variances(prob, views, sol.fun, psi, len(sol.x))
         cov = sandwich_covariance(prob, sol.fun, Jg, Jv, dpsi, var)

@@ -83,6 +83,14 @@ def undistort(xd: np.ndarray, D: np.ndarray, iterations: int = 8) -> np.ndarray:
     return PLUMB_BOB.undistort_normalized(xd, D, iterations)
 
 
+def _affine_jacobian(dxd: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """The affine part of K applied to d x_d / d(...) (N, 2, k): rows (fx, s) and (0, fy)."""
+    out = np.empty_like(dxd)
+    out[:, 0] = K[0, 0] * dxd[:, 0] + K[0, 1] * dxd[:, 1] if K[0, 1] else K[0, 0] * dxd[:, 0]
+    out[:, 1] = K[1, 1] * dxd[:, 1]
+    return out
+
+
 def project_with_jacobians(X: np.ndarray, K: np.ndarray, D: np.ndarray, lens: LensModel = PLUMB_BOB
                            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Project camera-frame points (N, 3) and differentiate analytically.
@@ -90,19 +98,24 @@ def project_with_jacobians(X: np.ndarray, K: np.ndarray, D: np.ndarray, lens: Le
     Returns the pixels q (N, 2), dq/dX (N, 2, 3) and dq/d(fx, fy, cx, cy, skew, D...)
     (N, 2, 5 + n), by the chain rule through the lens model's x_d(X) and K.
     """
-    fx, s, fy = K[0, 0], K[0, 1], K[1, 1]
     xd, dxdX, dxdD = lens.distort_with_jacobians(np.asarray(X, float), D)
     q = normalized_to_pixels(xd, K)
-    # the affine part of K applied to d x_d / d(...): rows (fx, s) and (0, fy)
-    dX = np.empty_like(dxdX)
-    dX[:, 0] = fx * dxdX[:, 0] + s * dxdX[:, 1]
-    dX[:, 1] = fy * dxdX[:, 1]
     dI = np.zeros((len(q), 2, 5 + lens.n))
     dI[:, 0, 0], dI[:, 0, 2], dI[:, 0, 4] = xd[:, 0], 1.0, xd[:, 1]
     dI[:, 1, 1], dI[:, 1, 3] = xd[:, 1], 1.0
-    dI[:, 0, 5:] = fx * dxdD[:, 0] + s * dxdD[:, 1]
-    dI[:, 1, 5:] = fy * dxdD[:, 1]
-    return q, dX, dI
+    dI[:, :, 5:] = _affine_jacobian(dxdD, K)
+    return q, _affine_jacobian(dxdX, K), dI
+
+
+def project_with_point_jacobian(X: np.ndarray, K: np.ndarray, D: np.ndarray, lens: LensModel = PLUMB_BOB
+                                ) -> tuple[np.ndarray, np.ndarray]:
+    """Pixels q (N, 2) and dq/dX (N, 2, 3) of camera-frame points (N, 3): :func:`project_with_jacobians`
+    without the intrinsics' Jacobian."""
+    xd, dxdX = lens.distort_with_point_jacobian(np.asarray(X, float), D)
+    q = np.empty_like(xd)
+    q[:, 0] = K[0, 0] * xd[:, 0] + K[0, 1] * xd[:, 1] + K[0, 2] if K[0, 1] else K[0, 0] * xd[:, 0] + K[0, 2]
+    q[:, 1] = K[1, 1] * xd[:, 1] + K[1, 2]
+    return q, _affine_jacobian(dxdX, K)
 
 
 def rodrigues(rvec: np.ndarray) -> np.ndarray:

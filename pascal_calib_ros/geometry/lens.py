@@ -61,6 +61,11 @@ class LensModel:
         """x_d (N, 2), d x_d / d X (N, 2, 3) and d x_d / d D (N, 2, n)."""
         raise NotImplementedError
 
+    def distort_with_point_jacobian(self, X: np.ndarray, D: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """x_d (N, 2) and d x_d / d X (N, 2, 3) only (models may skip d x_d / d D)."""
+        xd, dX, _ = self.distort_with_jacobians(X, D)
+        return xd, dX
+
     def undistort(self, xd: np.ndarray, D: np.ndarray, strict: bool = True) -> np.ndarray:
         """Distorted normalised coordinates (N, 2) -> unit rays (N, 3); with ``strict``, NaN where
         the model is not invertible (beyond its monotonic range). Without it, the iteration's
@@ -98,8 +103,11 @@ class PolynomialModel(LensModel):
 
     def _radial(self, xy: np.ndarray, D: np.ndarray) -> tuple[np.ndarray, ...]:
         """r^2, the rational factor's denominator, the factor R and dR/d(r^2)."""
+        return self._radial_of(xy[..., 0], xy[..., 1], D)
+
+    def _radial_of(self, x: np.ndarray, y: np.ndarray, D: np.ndarray) -> tuple[np.ndarray, ...]:
+        """:meth:`_radial` of the coordinates x, y."""
         k1, k2, _, _, k3, k4, k5, k6 = self._d8(D)
-        x, y = xy[..., 0], xy[..., 1]
         r2 = x * x + y * y
         num = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
         den = 1 + r2 * (k4 + r2 * (k5 + r2 * k6))
@@ -110,46 +118,76 @@ class PolynomialModel(LensModel):
                      ) -> tuple[np.ndarray, ...]:
         """d x_d / d (x, y) as (a, b, c, d) = (dxd/dx, dxd/dy, dyd/dx, dyd/dy); ``radial_terms``:
         :meth:`_radial` of the same points, if the caller has it."""
+        return self._jacobian_of(xy[..., 0], xy[..., 1], D, radial_terms)
+
+    def _jacobian_of(self, x: np.ndarray, y: np.ndarray, D: np.ndarray,
+                     radial_terms: tuple[np.ndarray, ...] | None = None) -> tuple[np.ndarray, ...]:
+        """:meth:`_jacobian_xy` of the coordinates x, y."""
         p1, p2 = self._d8(D)[2:4]
-        x, y = xy[..., 0], xy[..., 1]
-        _, _, radial, dradial = radial_terms if radial_terms is not None else self._radial(xy, D)
+        _, _, radial, dradial = radial_terms if radial_terms is not None else self._radial_of(x, y, D)
         b = 2 * x * y * dradial + 2 * p1 * x + 2 * p2 * y
         return (radial + 2 * x * x * dradial + 2 * p1 * y + 6 * p2 * x, b, b,
                 radial + 2 * y * y * dradial + 6 * p1 * y + 2 * p2 * x)
 
     def _normalized_jacobians(self, xy: np.ndarray, D: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """d x_d / d (x, y) (..., 2, 2) and d x_d / d D (..., 2, n)."""
-        x, y = xy[..., 0], xy[..., 1]
         terms = self._radial(xy, D)
-        r2, den, radial, _ = terms
         a, b, c, d = self._jacobian_xy(xy, D, terms)
-        J = np.stack([np.stack([a, b], -1), np.stack([c, d], -1)], -2)
+        J = np.empty((*xy.shape[:-1], 2, 2))
+        J[..., 0, 0], J[..., 0, 1], J[..., 1, 0], J[..., 1, 1] = a, b, c, d
+        return J, self._coefficient_jacobian(xy, terms)
+
+    def _coefficient_jacobian(self, xy: np.ndarray, terms: tuple[np.ndarray, ...]) -> np.ndarray:
+        """d x_d / d D (..., 2, n) from :meth:`_radial`'s terms of the same points."""
+        x, y = xy[..., 0], xy[..., 1]
+        r2, den, radial, _ = terms
         r4, r6 = r2 * r2, r2 * r2 * r2
         xs, ys = x / den, y / den
-        cols_x = [xs * r2, xs * r4, 2 * x * y, r2 + 2 * x * x, xs * r6]
-        cols_y = [ys * r2, ys * r4, r2 + 2 * y * y, 2 * x * y, ys * r6]
+        dD = np.empty((*xy.shape[:-1], 2, self.n))
+        dD[..., 0, 0], dD[..., 0, 1], dD[..., 0, 4] = xs * r2, xs * r4, xs * r6
+        dD[..., 1, 0], dD[..., 1, 1], dD[..., 1, 4] = ys * r2, ys * r4, ys * r6
+        dD[..., 0, 2] = dD[..., 1, 3] = 2 * x * y
+        dD[..., 0, 3] = r2 + 2 * x * x
+        dD[..., 1, 2] = r2 + 2 * y * y
         if self.n == 8:
-            cols_x += [-xs * radial * r2, -xs * radial * r4, -xs * radial * r6]
-            cols_y += [-ys * radial * r2, -ys * radial * r4, -ys * radial * r6]
-        dD = np.stack([np.stack(cols_x, -1), np.stack(cols_y, -1)], -2)
-        return J, dD
+            for k, rk in enumerate((r2, r4, r6)):
+                dD[..., 0, 5 + k] = -xs * radial * rk
+                dD[..., 1, 5 + k] = -ys * radial * rk
+        return dD
 
     def distort(self, X: np.ndarray, D: np.ndarray) -> np.ndarray:
         X = np.asarray(X, float)
         return self.distort_normalized(X[..., :2] / X[..., 2:3], D)
 
-    def distort_with_jacobians(self, X: np.ndarray, D: np.ndarray
-                               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _with_jacobians(self, X: np.ndarray, D: np.ndarray, coefficients: bool
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """x_d, d x_d / d X = (d x_d / d (x, y)) (d (x, y) / d X) with (x, y) = (X/Z, Y/Z), and
+        (``coefficients``) d x_d / d D; the radial factor computed once for all three."""
         X = np.asarray(X, float)
         iz = 1.0 / X[:, 2]
-        xy = X[:, :2] * iz[:, None]
-        xd = self.distort_normalized(xy, D)
-        J, dD = self._normalized_jacobians(xy, D)
-        dxdX = np.zeros((len(X), 2, 3))
-        dxdX[:, 0, 0] = dxdX[:, 1, 1] = iz
-        dxdX[:, 0, 2] = -xy[:, 0] * iz
-        dxdX[:, 1, 2] = -xy[:, 1] * iz
-        return xd, J @ dxdX, dD
+        x, y = X[:, 0] * iz, X[:, 1] * iz
+        p1, p2 = self._d8(D)[2:4]
+        terms = self._radial_of(x, y, D)
+        r2, _, radial, _ = terms
+        xd = np.empty((len(X), 2))
+        xd[:, 0] = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
+        xd[:, 1] = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+        a, b, c, d = self._jacobian_of(x, y, D, terms)
+        mx, my = -x * iz, -y * iz
+        dX = np.empty((len(X), 2, 3))
+        dX[:, 0, 0], dX[:, 0, 1], dX[:, 0, 2] = a * iz, b * iz, a * mx + b * my
+        dX[:, 1, 0], dX[:, 1, 1], dX[:, 1, 2] = c * iz, d * iz, c * mx + d * my
+        return xd, dX, self._coefficient_jacobian(np.stack([x, y], -1), terms) if coefficients else None
+
+    def distort_with_jacobians(self, X: np.ndarray, D: np.ndarray
+                               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        xd, dX, dD = self._with_jacobians(X, D, True)
+        assert dD is not None
+        return xd, dX, dD
+
+    def distort_with_point_jacobian(self, X: np.ndarray, D: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        xd, dX, _ = self._with_jacobians(X, D, False)
+        return xd, dX
 
     def undistort_normalized(self, xd: np.ndarray, D: np.ndarray, iterations: int = 8) -> np.ndarray:
         """Pinhole coordinates x = X/Z of distorted ones, by Newton's method from x = x_d."""
@@ -158,13 +196,18 @@ class PolynomialModel(LensModel):
         if not np.any(D != 0):
             return xd.copy()
         xy = xd.copy()
+        p1, p2 = self._d8(D)[2:4]
         for _ in range(iterations):
-            f = self.distort_normalized(xy, D) - xd
-            a, b, c, d = self._jacobian_xy(xy, D)
+            x, y = xy[..., 0], xy[..., 1]
+            terms = self._radial(xy, D)
+            r2, _, radial, _ = terms
+            fx = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) - xd[..., 0]
+            fy = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y - xd[..., 1]
+            a, b, c, d = self._jacobian_xy(xy, D, terms)
             det = a * d - b * c
             det = np.where(np.abs(det) < 1e-12, 1e-12, det)
-            dx = (d * f[..., 0] - b * f[..., 1]) / det
-            dy = (-c * f[..., 0] + a * f[..., 1]) / det
+            dx = (d * fx - b * fy) / det
+            dy = (-c * fx + a * fy) / det
             xy[..., 0] -= dx
             xy[..., 1] -= dy
             if np.max(np.abs(dx)) + np.max(np.abs(dy)) < 1e-13 * (1.0 + float(np.max(np.abs(xy)))):

@@ -3,7 +3,8 @@
 and ``~/suggest`` for a script: with ``hand_eye`` the next tool poses (latched
 ``~/suggested_tool_poses``, geometry_msgs/PoseArray in ``robot_base_frame``, ranked best first, and
 ``~/suggested_tool_pose``, the best, PoseStamped), without it the next camera_T_target, both from
-:mod:`..workflows.suggest` on the node's stored views (and their tool poses)."""
+:mod:`..workflows.suggest` on the node's stored views (and their tool poses); an arm's call starts
+from the previous call's estimate (:class:`~..workflows.suggest.WarmArmSuggestions`)."""
 
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ from ..geometry.camera import Camera
 from ..io.calibration_files import read_calibration_file
 from ..session.guide_overlay import draw_guide
 from ..session.guided_live import GuidedLive, GuideView
-from ..workflows.suggest import SuggestOptions, suggest_for_arm, suggest_for_person
+from ..workflows.suggest import SuggestOptions, WarmArmSuggestions, suggest_for_person
 
 if TYPE_CHECKING:
     from .calibration_node import CalibrationNode
@@ -99,6 +100,7 @@ class NodeGuide:
                                       zero_skew=bool(node.p("zero_skew")))
             self.live = GuidedLive(node.target, opts, float(node.p("goal_sigma_px")), int(node.p("suggest_count")),
                                    camera_guess=previous_camera(node))
+        self.arm = WarmArmSuggestions()  # ~/suggest for an arm: each call starts from the previous call's estimate
         self.pub_poses = node.create_publisher(PoseArray, "~/suggested_tool_poses", latched)
         self.pub_pose = node.create_publisher(PoseStamped, "~/suggested_tool_pose", latched)
         self.last_seconds = float("nan")
@@ -124,6 +126,7 @@ class NodeGuide:
         return None if self.live is None else self.live.view()
 
     def reset(self) -> None:
+        self.arm.reset()
         if self.live is not None:
             self.live.reset()
 
@@ -192,7 +195,7 @@ class NodeGuide:
                                    f"on {node.robot.resolved}: {node.robot.poses.received}); capture views at "
                                    "three or more arm poses first")
         base, tool = str(node.p("robot_base_frame")), str(node.p("robot_tool_frame"))
-        doc = suggest_for_arm(snap.views, snap.robot_poses, node.target, opt, (base, tool))
+        doc = self.arm.suggest(snap.views, snap.robot_poses, node.target, opt, (base, tool))
         if not doc["suggestions"] and not doc["done"]:
             raise PascalCalibError(f"no candidate view inside the trust region (suggest_reach {opt.reach:g} m, "
                                    f"suggest_max_turn {opt.max_turn:g} deg around the visited tool poses); widen it"

@@ -28,6 +28,7 @@ goals, and ``done`` requires those goals too.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -41,7 +42,8 @@ from ..analysis.candidates import Placement
 from ..analysis.guidance import Linearisation, ViewPredictor
 from ..analysis.view_ranking import RankedView, suggest_views
 from ..calibrate.handeye.options import HAND_EYE_MODES, HandEyeOptions
-from ..calibrate.handeye.session import calibrate_hand_eye
+from ..calibrate.handeye.session import calibrate_hand_eye_warm
+from ..calibrate.handeye.warm import HandEyeStart
 from ..calibrate.options import MIN_VIEWS, CalibrationOptions
 from ..calibrate.pipeline import calibrate
 from ..calibrate.problem import DISTORTION_MODELS
@@ -124,12 +126,20 @@ def suggest_for_person(dets: list[Detection], target: Target, opt: SuggestOption
 def suggest_for_arm(dets: list[Detection], robot: list[Transform | None], target: Target, opt: SuggestOptions,
                     frames: tuple[str, str]) -> dict[str, Any]:
     """NEXT.yaml's document for an arm session (``robot[i]``: T_base_tool of view i, or None)."""
+    return arm_suggestions(dets, robot, target, opt, frames)[0]
+
+
+def arm_suggestions(dets: list[Detection], robot: list[Transform | None], target: Target, opt: SuggestOptions,
+                    frames: tuple[str, str], start: HandEyeStart | None = None) -> tuple[dict[str, Any], HandEyeStart]:
+    """:func:`suggest_for_arm`'s document, its hand-eye estimate warm from a previous call's ``start``
+    where it applies (:mod:`..calibrate.handeye.warm`: the same estimate to the solves' tolerance;
+    "done" from the projection sigma of these views), and the start of the next call."""
     _usable([d for d, r in zip(dets, robot, strict=True) if r is not None])
     try:
         # the jackknife's sigmas of X are not what the prediction uses (it builds its own from the
         # views' information and the arm's estimated accuracy): off, a third of the time at 20 views
-        h = calibrate_hand_eye(dets, robot, target, opt.mode, CalibrationOptions(distortion=opt.distortion),
-                               HandEyeOptions(mode=opt.mode, jackknife_groups=0))
+        h, nxt = calibrate_hand_eye_warm(dets, robot, target, opt.mode, CalibrationOptions(distortion=opt.distortion),
+                                         HandEyeOptions(mode=opt.mode, jackknife_groups=0), start)
     except CalibrationError as e:  # HandEyeError included
         raise SuggestError(f"the views do not calibrate: {e}") from None
     ref = h.calibration.refinement
@@ -158,7 +168,34 @@ def suggest_for_arm(dets: list[Detection], robot: list[Transform | None], target
             "frame_id": frames[0], "child_frame_id": frames[1], "hand_eye_sigma_deg": round(s.rotation_deg, 6),
             "hand_eye_sigma_mm": round(s.translation_mm, 5), "goal_hand_eye_sigma_deg": opt.goal_deg,
             "goal_hand_eye_sigma_mm": opt.goal_mm, "reach_m": opt.reach, "max_turn_deg": opt.max_turn,
-            "suggestions": sugg}
+            "suggestions": sugg}, nxt
+
+
+class WarmArmSuggestions:
+    """:func:`suggest_for_arm` for a session that grows a view at a time (the node's ``~/suggest``
+    after every capture): each call starts from the previous call's estimate (:func:`arm_suggestions`);
+    a call whose views are not the previous ones plus new ones, or with other options, is cold.
+    Thread-safe: calls run one at a time; :meth:`reset` does not wait for a running one (its estimate
+    is then not kept)."""
+
+    def __init__(self) -> None:
+        self._start: HandEyeStart | None = None
+        self._resets = 0
+        self._lock = threading.Lock()
+
+    def suggest(self, dets: list[Detection], robot: list[Transform | None], target: Target, opt: SuggestOptions,
+                frames: tuple[str, str]) -> dict[str, Any]:
+        with self._lock:
+            resets = self._resets
+            doc, nxt = arm_suggestions(dets, robot, target, opt, frames, self._start)
+            if resets == self._resets:
+                self._start = nxt
+            return doc
+
+    def reset(self) -> None:
+        """Forget the previous estimate (the next call is cold)."""
+        self._resets += 1
+        self._start = None
 
 
 def write_next_yaml(path: str | Path, doc: dict[str, Any]) -> Path:
@@ -187,4 +224,5 @@ def summary(doc: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["SuggestError", "SuggestOptions", "suggest_for_arm", "suggest_for_person", "summary", "write_next_yaml"]
+__all__ = ["SuggestError", "SuggestOptions", "WarmArmSuggestions", "arm_suggestions", "suggest_for_arm",
+           "suggest_for_person", "summary", "write_next_yaml"]

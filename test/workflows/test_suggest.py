@@ -108,3 +108,38 @@ def test_arm_suggestions_stay_within_reach_and_max_turn(tmp_path: Path, mode: st
     code = main(["suggest", "--target", "ring_grid_a4", "--poses", str(tmp_path / "POSES.yaml"), "--mode",
                  mode, "--reach", "0.001", "--max-turn", "0.1", "-o", str(out), *map(str, paths)])
     assert code == 0 and yaml.safe_load(out.read_text())["suggestions"] == []
+
+
+def _numbers(doc: dict) -> list[float]:
+    """Every number of a NEXT.yaml document, in order."""
+    out: list[float] = []
+    for v in doc.values() if isinstance(doc, dict) else doc:
+        if isinstance(v, (dict, list)):
+            out += _numbers(v)
+        elif isinstance(v, (int, float)) and not isinstance(v, bool):
+            out.append(float(v))
+    return out
+
+
+def test_warm_arm_suggestions_answer_what_the_cold_call_answers() -> None:
+    """The node's sequence (a call after every capture) starts each call from the previous estimate:
+    the same document up to the last rounded digit; a removed view or a reset is answered cold."""
+    from pascal_calib_ros.detect.target_detector import detect_target
+    from pascal_calib_ros.workflows.suggest import SuggestOptions, WarmArmSuggestions, suggest_for_arm
+
+    target = resolve_target("ring_grid_a4")
+    s = simulate_arm_session(target, ArmSpec(mode="eye_in_hand", views=8, width=640, height=480, k1=-0.1, seed=3))
+    dets = [detect_target(im, target) for im in s.images[target.name]]
+    robot = list(s.robot_poses)
+    opt, frames, guide = SuggestOptions(mode="eye_in_hand"), ("base_link", "tool0"), WarmArmSuggestions()
+    for n in (5, 6, 7, 8):
+        warm = guide.suggest(dets[:n], robot[:n], target, opt, frames)
+        cold = suggest_for_arm(dets[:n], robot[:n], target, opt, frames)
+        assert warm.keys() == cold.keys() and warm["done"] == cold["done"] and warm["views_used"] == n
+        assert len(warm["suggestions"]) == len(cold["suggestions"]) > 0
+        np.testing.assert_allclose(_numbers(warm), _numbers(cold), rtol=1e-4, atol=2e-6)
+    for views in (dets[:7], dets[:8]):  # one view fewer: cold; then the same views again after a reset
+        if len(views) == 8:
+            guide.reset()
+        assert guide.suggest(views, robot[:len(views)], target, opt, frames) == \
+            suggest_for_arm(views, robot[:len(views)], target, opt, frames)

@@ -68,15 +68,23 @@ class ChainProblem(Problem):
     def chain_deltas(self, xy: np.ndarray, poses: np.ndarray, chain: list[Any] | None = None
                      ) -> tuple[np.ndarray, np.ndarray]:
         """Per view the disagreement G_i^-1 G'_i as (rotation vectors (V, 3) rad, translations (V, 3) m);
-        ``chain``: other chain poses M_i than the problem's (a perturbed arm)."""
-        RX, tX = Rotation.from_rotvec(xy[0:3]), xy[3:6]
-        RY, tY = Rotation.from_rotvec(xy[6:9]), xy[9:12]
+        ``chain``: other chain poses M_i than the problem's (a perturbed arm). Batched: ``xy`` (B, 12)
+        and ``poses`` (B, V, 6) give (B, V, 3) each."""
+        xy, poses = np.asarray(xy, float), np.asarray(poses, float)
+        batch = xy.shape[:-1]
+        nb, nv = int(np.prod(batch)), poses.shape[-2]
+        xy = np.repeat(xy.reshape(nb, 1, 12), nv, 1).reshape(-1, 12)
+        poses = np.array(np.broadcast_to(poses, (*batch, nv, poses.shape[-1])).reshape(-1, poses.shape[-1]))
+        RX, tX = Rotation.from_rotvec(xy[:, 0:3]), xy[:, 3:6]
+        RY, tY = Rotation.from_rotvec(xy[:, 6:9]), xy[:, 9:12]
         RC, tC = Rotation.from_rotvec(poses[:, :3]), poses[:, 3:6]
         if chain is None:
             RM, tM = self._RM, self._tM
         else:
             RM, tM = Rotation.concatenate([m.rotation for m in chain]), np.array([m.translation for m in chain])
         assert RM is not None
+        if nb > 1:
+            RM, tM = Rotation.concatenate([RM] * nb), np.tile(tM, (nb, 1))
         if self.chain.eye_in_hand:  # M^-1 Y C^-1 X^-1
             RMi = RM.inv()
             R1, t1 = RMi * RY, RMi.apply(tY - tM)
@@ -89,13 +97,14 @@ class ChainProblem(Problem):
             R2, t2 = R1 * RC, R1.apply(tC) + t1
             RYi = RY.inv()
             R3, t3 = R2 * RYi, t2 - (R2 * RYi).apply(tY)
-        return R3.as_rotvec().reshape(-1, 3), np.asarray(t3).reshape(-1, 3)
+        return R3.as_rotvec().reshape(*batch, nv, 3), np.asarray(t3).reshape(*batch, nv, 3)
 
     def chain_residuals(self, xy: np.ndarray, poses: np.ndarray, chain: list[Any] | None = None) -> np.ndarray:
-        """(V, 6) normalised chain residuals (rotation then translation), times ``scale``."""
+        """(V, 6) normalised chain residuals (rotation then translation), times ``scale`` ((B, V, 6)
+        for a batch, :meth:`chain_deltas`)."""
         rv, t = self.chain_deltas(xy, poses, chain)
         c = self.chain
-        return np.concatenate([rv / c.sigma_rot, t / c.sigma_trans], 1) * c.scale
+        return np.concatenate([rv / c.sigma_rot, t / c.sigma_trans], -1) * c.scale
 
     def evaluate(self, x: np.ndarray, intr0: np.ndarray, jac: bool = True
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -111,20 +120,19 @@ class ChainProblem(Problem):
 
     def chain_jacobian(self, xy: np.ndarray, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The chain rows' Jacobian by central differences: (6V, ng) over the global parameters and
-        (6V, per_view) over the pose of each row's own view."""
+        (6V, per_view) over the pose of each row's own view (every perturbation in one batch)."""
         h = 1e-6
         nv = self.nv
+        E = h * np.eye(self.N_CHAIN)
+        P = h * np.eye(6)[:, None, :]  # pose k of every view moved
+        xys = np.concatenate([xy + E, xy - E, np.tile(xy, (12, 1))])
+        ps = np.concatenate([np.broadcast_to(poses, (2 * self.N_CHAIN, nv, 6)), poses + P, poses - P])
+        r = self.chain_residuals(xys, ps)
+        n = self.N_CHAIN
         Jgp = np.zeros((6 * nv, self.ng))
-        for k in range(self.N_CHAIN):
-            e = np.zeros(self.N_CHAIN)
-            e[k] = h
-            d = (self.chain_residuals(xy + e, poses) - self.chain_residuals(xy - e, poses)) / (2 * h)
-            Jgp[:, self.n_base + k] = d.ravel()
+        Jgp[:, self.n_base:self.n_base + n] = ((r[:n] - r[n:2 * n]) / (2 * h)).reshape(n, -1).T
         Jvp = np.zeros((nv, 6, self.per_view))
-        for k in range(6):
-            e = np.zeros(6)
-            e[k] = h
-            Jvp[:, :, k] = (self.chain_residuals(xy, poses + e) - self.chain_residuals(xy, poses - e)) / (2 * h)
+        Jvp[:, :, :6] = ((r[2 * n:2 * n + 6] - r[2 * n + 6:]) / (2 * h)).transpose(1, 2, 0)
         return Jgp, Jvp.reshape(6 * nv, self.per_view)
 
     def chain_dense_jacobian(self, xy: np.ndarray, poses: np.ndarray) -> np.ndarray:
@@ -135,6 +143,17 @@ class ChainProblem(Problem):
         for i in range(self.nv):
             s = self.ng + i * self.per_view
             J[6 * i:6 * i + 6, s:s + self.per_view] = Jvp[6 * i:6 * i + 6]
+        return J
+
+    def dense_rows(self, Jg: np.ndarray, Jv: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """Rows ``rows`` of the full Jacobian (len(rows), parameters) from its blocks (each row's
+        own view: edge rows by ``view_of_pt``, corner rows by ``view_of_corner``, chain rows six
+        per view)."""
+        view = np.concatenate([self.view_of_pt, np.repeat(self.view_of_corner, 2), np.repeat(np.arange(self.nv), 6)])
+        J = np.zeros((len(rows), self.ng + self.per_view * self.nv))
+        J[:, : self.ng] = Jg[rows]
+        cols = self.ng + self.per_view * view[rows][:, None] + np.arange(self.per_view)
+        np.put_along_axis(J, cols, Jv[rows], 1)
         return J
 
     def robust_weights(self, f: np.ndarray, loss_scale: float) -> np.ndarray:

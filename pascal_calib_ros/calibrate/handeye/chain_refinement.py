@@ -11,7 +11,7 @@ intrinsics free); their covariance is that of the images alone (the chain rows w
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -19,7 +19,7 @@ from ...geometry.lens import DISTORTION_CHOICES, LensModel
 from ...geometry.transform import Transform
 from ...targets import Target
 from ..covariance import correlation_factor
-from ..lm import LMResult, levenberg_marquardt
+from ..lm import WARM_START, LMResult, levenberg_marquardt
 from ..observations import ViewData
 from ..options import CalibrationOptions
 from ..problem import camera_from_intrinsics, shape_frame_of
@@ -66,6 +66,7 @@ class ChainSolution:
     intrinsics_share: Spread
     arm_share: Spread
     success: bool
+    passes: list[np.ndarray] = field(default_factory=list)  # the solution of each variance-components pass
 
 
 @dataclass
@@ -105,17 +106,29 @@ def _setup(views: list[ViewData], start: ChainStart, opt: CalibrationOptions, he
     return _Setup(prob, chain, x, intr0, free, shape, frame, lens)
 
 
-def _variance_components(s: _Setup, views: list[ViewData], he: HandEyeOptions) -> tuple[LMResult, float]:
+def _variance_components(s: _Setup, views: list[ViewData], he: HandEyeOptions, warm: np.ndarray | None = None
+                         ) -> tuple[LMResult, float, np.ndarray, list[np.ndarray]]:
     """Solve, re-estimating the arm's sigmas (sigma^2 <- sum r^2 / redundancy of the chain rows) and the
-    chain's scale (the edges' s_edge sqrt(kappa)) until they settle; returns the solution and kappa."""
+    chain's scale (the edges' s_edge sqrt(kappa)) until they settle; returns the solution, kappa, the
+    pseudo-inverse of the solution's normal matrix and the solution of every pass. The redundancy of
+    rows g is n_g - trace(A^+ J_g^T J_g) = n_g - sum((J_g A^+) * J_g), from their rows of the Jacobian
+    alone. ``warm``: where the first pass starts (a previous call's first pass), every pass solved
+    with :data:`~..lm.WARM_START`; the passes and their sigmas are the cold ones, each solve
+    converging to the same point."""
     prob, chain, intr0 = s.prob, s.chain, s.intr0
     sig_r, sig_t = chain.sigma_rot, chain.sigma_trans
     rows_r, rows_t = prob.chain_rows()
     kappa, x = 1.0, s.x
+    Ainv: np.ndarray | None = None
+    passes: list[np.ndarray] = []
     for it in range(8 if he.estimate_robot_noise else 2):
         chain.sigma_rot, chain.sigma_trans = sig_r, sig_t
-        sol = levenberg_marquardt(prob, x, intr0, LOSS_SCALE, max_iter=100)
-        x = sol.x
+        if warm is not None:
+            sol = levenberg_marquardt(prob, x if it else warm, intr0, LOSS_SCALE, max_iter=100, options=WARM_START)
+        else:
+            sol = levenberg_marquardt(prob, x, intr0, LOSS_SCALE, max_iter=100)
+        x, Ainv = sol.x, None
+        passes.append(x)
         # the edge scale (px) and the edges' correlation: what a chain residual of one sigma weighs
         n_rob = prob.n_robust
         s_edge = float(np.sqrt(np.sum(sol.weights[:n_rob] * sol.fun[:n_rob] ** 2) / max(n_rob - len(x), 1)))
@@ -126,12 +139,11 @@ def _variance_components(s: _Setup, views: list[ViewData], he: HandEyeOptions) -
                 continue
             break
         Ainv = np.linalg.pinv(sol.normal_matrix)
+        Jg, Jv = sol.jacobian if sol.jacobian is not None else prob.evaluate(x, intr0)[1:]
         new = []
         for rows, sig in ((rows_r, sig_r), (rows_t, sig_t)):
-            w = np.zeros(len(sol.fun))
-            w[rows] = 1.0
-            Ag, _ = prob.normal_equations(sol.fun, *prob.evaluate(x, intr0)[1:], w)
-            red = max(len(rows) - float(np.trace(Ainv @ Ag)), 1.0)
+            Jr = prob.dense_rows(Jg, Jv, rows)
+            red = max(len(rows) - float(np.sum((Jr @ Ainv) * Jr)), 1.0)
             chi2 = float(np.sum((sol.fun[rows] / chain.scale) ** 2))
             new.append(sig * np.sqrt(chi2 / red))
         new_r, new_t = max(new[0], np.radians(1e-4)), max(new[1], 1e-6)
@@ -143,7 +155,7 @@ def _variance_components(s: _Setup, views: list[ViewData], he: HandEyeOptions) -
         if done:
             break
     chain.sigma_rot, chain.sigma_trans = sig_r, sig_t
-    return sol, kappa
+    return sol, kappa, np.linalg.pinv(sol.normal_matrix) if Ainv is None else Ainv, passes
 
 
 def _intrinsics_share(s: _Setup, views: list[ViewData], opt: CalibrationOptions, x: np.ndarray, s2: float,
@@ -185,24 +197,25 @@ def _residual_figures(prob: ChainProblem, f: np.ndarray) -> tuple[float, np.ndar
 
 
 def refine_chain(views: list[ViewData], start: ChainStart, opt: CalibrationOptions, he: HandEyeOptions,
-                 target: Target, origin: tuple[float, float]) -> ChainSolution:
+                 target: Target, origin: tuple[float, float], warm: np.ndarray | None = None) -> ChainSolution:
     """The joint refinement with the robot chain as a measurement (module docstring); the arm's
-    sigmas by variance components (iterated) when ``he.estimate_robot_noise``."""
+    sigmas by variance components (iterated) when ``he.estimate_robot_noise``. ``warm``: the first
+    pass's start (:func:`_variance_components`), in the layout of :meth:`~.chain.ChainProblem.pack_chain`."""
     s = _setup(views, start, opt, he, target, origin)
     prob = s.prob
-    sol, kappa = _variance_components(s, views, he)
+    sol, kappa, Ainv, passes = _variance_components(s, views, he, warm)
     x, f, w = sol.x, sol.fun, sol.weights
     intr, _, poses, offsets = prob.unpack(x, s.intr0)
     xy = prob.chain_params(x)
     n_rob = prob.n_robust
     s2 = float(np.sum(w[:n_rob] * f[:n_rob] ** 2) / max(n_rob - len(x), 1)) if n_rob else 1.0
-    cov = np.linalg.pinv(sol.normal_matrix) * s2 * kappa
+    cov = Ainv * s2 * kappa
     std = {prob.names[i]: float(np.sqrt(max(cov[k, k], 0.0))) for k, i in enumerate(prob.free)}
     if he.intrinsics == "hold":
         cov_i, std = _intrinsics_share(s, views, opt, x, s2, kappa)
     else:
         cov_i = np.zeros_like(cov)  # estimated with the chain: their share is in cov
-    cov_a = arm_field_share(prob, x, s.intr0, sol.normal_matrix, start.M, he) if he.arm_accuracy_mm > 0 \
+    cov_a = arm_field_share(prob, x, s.intr0, sol.normal_matrix, start.M, he, A_pinv=Ainv) if he.arm_accuracy_mm > 0 \
         else np.zeros_like(cov)
     rms, view_rms, edge_res, corner_res = _residual_figures(prob, f)
     # the robot error the data imply: the estimated sigmas, or the RMS of the disagreements per axis
@@ -218,14 +231,14 @@ def refine_chain(views: list[ViewData], start: ChainStart, opt: CalibrationOptio
         view_rms=view_rms, edge_residuals=edge_res, corner_residuals=corner_res, robot_error_mm=err_mm,
         robot_error_deg=err_deg, covariance=spread_of(cov, xy, prob.n_base),
         intrinsics_share=spread_of(cov_i, xy, prob.n_base), arm_share=spread_of(cov_a, xy, prob.n_base),
-        success=bool(sol.success))
+        success=bool(sol.success), passes=passes)
 
 
 def refine_chain_xy(views: list[ViewData], start: ChainStart, opt: CalibrationOptions, he: HandEyeOptions,
                     target: Target, origin: tuple[float, float]) -> tuple[Transform, Transform]:
     """X and Y of the joint refinement only (no covariance): what the jackknife re-solves."""
     s = _setup(views, start, opt, he, target, origin)
-    sol, _ = _variance_components(s, views, he)
+    sol, _, _, _ = _variance_components(s, views, he)
     xy = s.prob.chain_params(sol.x)
     return Transform.from_rotvec(xy[0:3], xy[3:6]), Transform.from_rotvec(xy[6:9], xy[9:12])
 

@@ -93,10 +93,12 @@ def motion_pairs(M: list[Transform], C: list[Transform]) -> Motions:
 
 
 def target_from_chain(M: list[Transform], X: Transform, C: list[Transform]) -> Transform:
-    """Y as the mean of M_i X C_i (rotation mean, translation mean)."""
-    Ys = [m @ X @ c for m, c in zip(M, C, strict=True)]
-    rot = Rotation.concatenate([y.rotation for y in Ys]).mean()
-    return Transform(rot, np.mean([y.translation for y in Ys], 0))
+    """Y as the mean of M_i X C_i (rotation mean, translation mean), all views at once."""
+    RM, tM = _stack(M)
+    RC, tC = _stack(C)
+    RMX = RM * X.rotation
+    tMX = RM.apply(X.translation) + tM
+    return Transform((RMX * RC).mean(), np.mean(RMX.apply(tC) + tMX, 0))
 
 
 def hand_eye_closed_form(M: list[Transform], C: list[Transform]) -> tuple[Transform, Transform]:
@@ -112,7 +114,6 @@ def ring_closed_form(M: list[Transform], centres: np.ndarray, normals: np.ndarra
     centre and normal in the fixed frame; R_X as 9 unknowns, then the nearest rotation), refined
     by nonlinear least squares on the same loop. Y's rotation about the target's axis is set to
     make the first view's rotation about its axis zero."""
-    n = len(M)
     rows, rhs = [], []
     for m, c, nv in zip(M, centres, normals, strict=True):
         RM = m.R
@@ -138,14 +139,16 @@ def ring_closed_form(M: list[Transform], centres: np.ndarray, normals: np.ndarra
         th, ph = p[9], p[10]
         return X, p[6:9], np.array([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
 
+    RM = np.array([m.R for m in M]).reshape(-1, 3, 3)
+    tM = np.array([m.translation for m in M]).reshape(-1, 3)
+
     def res(p: np.ndarray) -> np.ndarray:
-        X, pc, d = unpack(p)
-        out = []
-        for k in range(n):
-            MX = M[k] @ X
-            out.append(MX.apply(centres[k]) - pc)
-            out.append(length * (MX.rotation.apply(normals[k]) - d))
-        return np.concatenate(out)
+        # per view (M_k X c_k - p, L (R_Mk R_X n_k - d)), all views at once (unpack's X without a Transform)
+        RX, pc = Rotation.from_rotvec(p[:3]).as_matrix(), p[6:9]
+        d = np.array([np.sin(p[9]) * np.cos(p[10]), np.sin(p[9]) * np.sin(p[10]), np.cos(p[9])])
+        pts = np.einsum("kij,kj->ki", RM, centres @ RX.T + p[3:6]) + tM - pc
+        nrm = length * (np.einsum("kij,kj->ki", RM, normals @ RX.T) - d)
+        return np.concatenate([pts, nrm], 1).ravel()
 
     th0 = float(np.arccos(np.clip(d0[2], -1, 1)))
     p0 = np.r_[Rotation.from_matrix(RX).as_rotvec(), z[9:12], z[12:15], th0, np.arctan2(d0[1], d0[0])]
@@ -179,7 +182,12 @@ def check_robot_poses(poses: list[Transform], mode: str) -> None:
         raise HandEyeError(f"the robot poses differ by pure translations (no relative rotation above "
                            f"{MIN_MOTION_DEG:g} deg): the hand-eye rotation is undetermined; rotate the tool about "
                            "at least two different axes between views")
-    a = axes
+    # the largest angle between two axes (as lines) is at least the largest to the first axis and at most
+    # twice it (the angle between lines is a metric): all pairs only when that does not decide
+    to_first = float(np.degrees(np.arcsin(min(float(np.max(np.linalg.norm(np.cross(axes, axes[0]), axis=1))), 1.0))))
+    if to_first >= MIN_AXIS_SPREAD_DEG:
+        return
+    a = axes if 2 * to_first >= MIN_AXIS_SPREAD_DEG else axes[:1]
     spread = float(np.max(np.linalg.norm(np.cross(a[:, None, :], a[None, :, :]), axis=2)))
     if np.degrees(np.arcsin(min(spread, 1.0))) < MIN_AXIS_SPREAD_DEG:
         raise HandEyeError(f"all robot motions rotate about a single axis (axes within {MIN_AXIS_SPREAD_DEG:g} deg "
@@ -214,13 +222,14 @@ def chain_disagreement(M: list[Transform], X: Transform, Y: Transform, C: list[T
 def complete_ring_poses(M: list[Transform], X: Transform, Y: Transform, C: list[Transform]) -> list[Transform]:
     """Each view's rotation about the ring's axis from the chain: the predicted pose
     X^-1 M^-1 Y turned minimally so that its z axis is the measured normal; the measured centre."""
-    out = []
-    for m, c in zip(M, C, strict=True):
-        P = X.inverse() @ m.inverse() @ Y
-        z_pred, z_meas = P.R[:, 2], c.R[:, 2]
-        axis = np.cross(z_pred, z_meas)
-        s = float(np.linalg.norm(axis))
-        turn = Rotation.from_rotvec(axis / s * np.arctan2(s, float(z_pred @ z_meas))) if s > 1e-12 \
-            else Rotation.identity()
-        out.append(Transform(turn * P.rotation, c.translation))
-    return out
+    if not M:
+        return []
+    RP = X.rotation.inv() * Rotation.concatenate([m.rotation for m in M]).inv() * Y.rotation  # all views at once
+    z_pred = RP.as_matrix().reshape(-1, 3, 3)[:, :, 2]
+    z_meas = np.array([c.R[:, 2] for c in C])
+    axis = np.cross(z_pred, z_meas)
+    s = np.linalg.norm(axis, axis=1)
+    ang = np.arctan2(s, np.sum(z_pred * z_meas, 1))
+    rv = np.where(s[:, None] > 1e-12, axis / np.maximum(s, 1e-300)[:, None] * ang[:, None], 0.0)
+    R = Rotation.from_rotvec(rv) * RP
+    return [Transform(R[k], c.translation) for k, c in enumerate(C)]

@@ -126,12 +126,12 @@ def label_consistently(M: list[Transform], C: list[Transform], views: list[ViewD
     turns = [syms[s] for s in best[1]]
     Cl = [c @ T for c, T in zip(C, turns, strict=True)]
     X, Y = hand_eye_closed_form(M, Cl)
-    for i in range(len(C)):  # again against the chain with X and Y of the closed form
-        errs = []
-        for T in syms:
-            mm, deg = chain_disagreement([M[i]], X, Y, [Cl[i] @ T], mode)
-            errs.append(mm[0] + 10 * deg[0])
-        turns[i] = turns[i] @ syms[int(np.argmin(errs))]
+    errs = []  # again against the chain with X and Y of the closed form: per symmetry, every view at once
+    for T in syms:
+        mm, deg = chain_disagreement(M, X, Y, [c @ T for c in Cl], mode)
+        errs.append(mm + 10 * deg)
+    best = np.argmin(np.array(errs), 0)
+    turns = [t @ syms[int(b)] for t, b in zip(turns, best, strict=True)]
     # the labelling of the whole session is free up to the symmetry (X is not affected; Y is turned): keep
     # the one most views were detected in
     g = min(syms, key=lambda G: sum((T @ G).angle_deg() > 1.0 for T in turns))

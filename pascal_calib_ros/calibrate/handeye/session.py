@@ -65,22 +65,28 @@ from ...geometry.transform import Transform
 from ...targets import Target
 from ..observations import ViewData
 from ..options import CalibrationOptions
-from ..pipeline import DEFAULT_OPTIONS, calibrate
+from ..pipeline import DEFAULT_OPTIONS
 from ..result import CalibrationError, CalibrationResult, ViewReport
+from ..warm import calibrate_session
 from .chain_refinement import ChainSolution, ChainStart, jackknife_spread, refine_chain
 from .closed_form import (
+    Motions,
     chain_disagreement,
     chain_pose,
     check_robot_poses,
     complete_ring_poses,
     hand_eye_closed_form,
+    motion_pairs,
+    park_martin_motions,
     ring_closed_form,
+    target_from_chain,
 )
 from .labelling import label_consistently, target_symmetries
 from .options import HAND_EYE_MODES, MIN_VIEWS, HandEyeError, HandEyeOptions, HandEyeResult
 from .outliers import Disagreement, drop_disagreeing_views
 from .sigma import Spread
 from .view_poses import posed_views, refined_poses
+from .warm import HandEyeStart
 
 
 def _checked(dets: list[Detection], robot_poses: Sequence[Transform | None], mode: str,
@@ -108,15 +114,25 @@ def _checked(dets: list[Detection], robot_poses: Sequence[Transform | None], mod
 def _closed_form_solver(M: list[Transform], C: list[Transform], axisymmetric: bool
                         ) -> Callable[[list[int]], tuple[Transform, Transform, list[Transform]]]:
     """X, Y and the views' poses from a subset of the views: Park-Martin, or the ring's linear form
-    (each view's rotation about the ring's axis then fixed by the chain)."""
+    (each view's rotation about the ring's axis then fixed by the chain). Park-Martin's motion
+    pairs are formed once for all views; an ascending subset takes the pairs within it (in the
+    same order: the same X as :func:`hand_eye_closed_form` of the subset)."""
+    pairs = motion_pairs(M, C) if not axisymmetric and len(M) > 1 else None
+    i, j = np.triu_indices(len(M), 1)
+
     def solve(sel: list[int]) -> tuple[Transform, Transform, list[Transform]]:
-        Ms = [M[i] for i in sel]
+        Ms, Cs = [M[k] for k in sel], [C[k] for k in sel]
         if axisymmetric:
-            X, Y = ring_closed_form(Ms, np.array([C[i].translation for i in sel]),
-                                    np.array([C[i].R[:, 2] for i in sel]))
-            return X, Y, complete_ring_poses(Ms, X, Y, [C[i] for i in sel])
-        X, Y = hand_eye_closed_form(Ms, [C[i] for i in sel])
-        return X, Y, [C[i] for i in sel]
+            X, Y = ring_closed_form(Ms, np.array([c.translation for c in Cs]), np.array([c.R[:, 2] for c in Cs]))
+            return X, Y, complete_ring_poses(Ms, X, Y, Cs)
+        if pairs is None or list(sel) != sorted(set(sel)):
+            X, Y = hand_eye_closed_form(Ms, Cs)
+            return X, Y, Cs
+        inside = np.zeros(len(M), bool)
+        inside[sel] = True
+        keep = inside[i] & inside[j]
+        X = park_martin_motions(Motions(*(a[keep] for a in (pairs.alpha, pairs.beta, pairs.RA, pairs.tA, pairs.tB))))
+        return X, target_from_chain(Ms, X, Cs), Cs
 
     return solve
 
@@ -126,9 +142,20 @@ def calibrate_hand_eye(dets: list[Detection], robot_poses: Sequence[Transform | 
                        ) -> HandEyeResult:
     """Joint intrinsic + hand-eye calibration (module docstring). ``robot_poses[i]`` is the tool
     pose in the base frame (T_base_tool) at view i, None if unknown (the view is refused)."""
+    return calibrate_hand_eye_warm(dets, robot_poses, target, mode, options, he)[0]
+
+
+def calibrate_hand_eye_warm(dets: list[Detection], robot_poses: Sequence[Transform | None], target: Target, mode: str,
+                            options: CalibrationOptions = DEFAULT_OPTIONS, he: HandEyeOptions | None = None,
+                            start: HandEyeStart | None = None) -> tuple[HandEyeResult, HandEyeStart]:
+    """:func:`calibrate_hand_eye`, warm from a previous call's ``start`` where it applies (:mod:`.warm`:
+    the same estimate to the solves' tolerance), and the start of the next call."""
+    given = tuple(dets), tuple(robot_poses)
     he, dets = _checked(dets, robot_poses, mode, he)
+    if start is not None and not start.applies(*given, he):
+        start = None
     try:
-        cal = calibrate(dets, target, options)
+        cal, intrinsic = calibrate_session(dets, target, options, start.intrinsic if start else None)
     except HandEyeError:
         raise
     except CalibrationError as e:
@@ -136,7 +163,9 @@ def calibrate_hand_eye(dets: list[Detection], robot_poses: Sequence[Transform | 
     reports = [replace(v) for v in cal.views]
     warnings = list(cal.warnings)
     axisymmetric = len({c.center for c in target.circles}) == 1 and not target.checkerboards
-    views, C, idx = posed_views(dets, reports, target, cal.camera(), options, axisymmetric, refined_poses(cal))
+    observed = dict(zip(intrinsic.first.idx, intrinsic.first.res.first_views, strict=True)) if intrinsic else None
+    views, C, idx = posed_views(dets, reports, target, cal.camera(), options, axisymmetric, refined_poses(cal),
+                                observed)
     M = [chain_pose(robot_poses[k], mode) for k in idx]  # type: ignore[arg-type]
     if len(idx) < MIN_VIEWS:
         raise HandEyeError(f"only {len(idx)} view(s) with a robot pose and a camera pose; need {MIN_VIEWS}")
@@ -151,13 +180,15 @@ def calibrate_hand_eye(dets: list[Detection], robot_poses: Sequence[Transform | 
     for i, d in dropped.items():
         reports[idx[i]].used, reports[idx[i]].reason = False, d.reason
     views, M, kept = [views[i] for i in active], [M[i] for i in active], [idx[i] for i in active]
-    sol = refine_chain(views, ChainStart(X0, Y0, C0, M, cal), options, he, target, target.local_origin)
+    warm = start.chain_start(kept, C0, [reports[k].edge_offset for k in kept], 6 + options.edge_offsets) \
+        if start else None
+    sol = refine_chain(views, ChainStart(X0, Y0, C0, M, cal), options, he, target, target.local_origin, warm)
     spread = sol.covariance
     if he.jackknife_groups >= 2 and len(views) >= 2 * he.jackknife_groups:
         # the jackknife holds the intrinsics when they are held ("hold"): their share is added after
         he_k = replace(he, robot_sigma_mm=sol.robot_error_mm, robot_sigma_deg=sol.robot_error_deg)
-        start = ChainStart(sol.X, sol.Y, sol.poses, M, replace(cal, K=sol.K, D=sol.D))
-        spread = spread.maximum(jackknife_spread(views, start, options, he_k, target, target.local_origin))
+        solved = ChainStart(sol.X, sol.Y, sol.poses, M, replace(cal, K=sol.K, D=sol.D))
+        spread = spread.maximum(jackknife_spread(views, solved, options, he_k, target, target.local_origin))
     spread = spread.root_sum_square(sol.intrinsics_share, sol.arm_share)
     if not sol.success:
         warnings.append("the joint refinement stopped early")
@@ -169,8 +200,9 @@ def calibrate_hand_eye(dets: list[Detection], robot_poses: Sequence[Transform | 
     for j, k in enumerate(kept):
         reports[k].used, reports[k].reason = True, ""
         reports[k].rms, reports[k].edge_offset = float(sol.view_rms[j]), float(sol.offsets[j])
-    return _result(cal, sol, views, reports, warnings=warnings, he=he, per_view=per_view, X0=X0, spread=spread,
-                   target=target)
+    result = _result(cal, sol, views, reports, warnings=warnings, he=he, per_view=per_view, X0=X0, spread=spread,
+                     target=target)
+    return result, HandEyeStart(*given, he, intrinsic, tuple(kept), tuple(C0), sol.passes[0])
 
 
 def _per_view(reports: list[ViewReport], kept: list[int], dropped: dict[int, Disagreement],

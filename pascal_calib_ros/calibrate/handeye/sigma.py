@@ -68,11 +68,12 @@ def arm_field_covariance(positions: np.ndarray, sigma_m: float, length_m: float)
 
 
 def arm_field_share(prob: ChainProblem, x: np.ndarray, intr0: np.ndarray, A: np.ndarray, M: list[Transform],
-                    he: HandEyeOptions) -> np.ndarray:
+                    he: HandEyeOptions, A_pinv: np.ndarray | None = None) -> np.ndarray:
     """The parameters' covariance from the arm's systematic position error (:func:`arm_field_covariance`,
     ``he.arm_accuracy_mm`` over ``he.arm_accuracy_length``). The estimate moves with an error e of the
     reported tool positions by dx = -A^+ J_c^T (dr_c / de) e (A = J^T W J of the solution, J_c the
-    chain rows' Jacobian, their weight 1); its covariance is S Sigma_e S^T. A uniform shift of every
+    chain rows' Jacobian, their weight 1; ``A_pinv``: A^+ if the caller has it); its covariance is
+    S Sigma_e S^T. A uniform shift of every
     tool position moves the target's pose (eye in hand) or X itself (eye to hand: the camera sees
     the target where it is, the arm reports it elsewhere); what varies over the poses bends X."""
     xy = prob.chain_params(x)
@@ -88,7 +89,7 @@ def arm_field_share(prob: ChainProblem, x: np.ndarray, intr0: np.ndarray, A: np.
         d = (prob.chain_residuals(xy, poses, moved[0]) - prob.chain_residuals(xy, poses, moved[1])) / (2 * h)
         for i in range(nv):
             D[6 * i:6 * i + 6, 3 * i + a] = d[i]
-    S = -np.linalg.pinv(A) @ (prob.chain_dense_jacobian(xy, poses).T @ D)
+    S = -(np.linalg.pinv(A) if A_pinv is None else A_pinv) @ (prob.chain_dense_jacobian(xy, poses).T @ D)
     cov_e = arm_field_covariance(np.array([g.translation for g in G]), he.arm_accuracy_mm / 1000,
                                  he.arm_accuracy_length)
     return S @ cov_e @ S.T

@@ -85,11 +85,12 @@ def refined_poses(cal: CalibrationResult) -> dict[int, Transform]:
 
 
 def posed_views(dets: list[Detection], reports: list[ViewReport], target: Target, cam: Camera,
-                options: CalibrationOptions, axisymmetric: bool, known: dict[int, Transform] | None = None
-                ) -> tuple[list[ViewData], list[Transform], list[int]]:
+                options: CalibrationOptions, axisymmetric: bool, known: dict[int, Transform] | None = None,
+                observed: dict[int, ViewData] | None = None) -> tuple[list[ViewData], list[Transform], list[int]]:
     """(observations, camera pose, index into the session) of every used view that can be posed
     with the calibrated camera; a view that cannot is marked unused in ``reports`` with the reason.
-    ``known``: poses already at hand (:func:`refined_poses`), used as they are."""
+    ``known``: poses already at hand (:func:`refined_poses`), used as they are; ``observed``: views'
+    observations already at hand (:func:`~..observations.observations` of the same detections)."""
     origin = target.local_origin
     views: list[ViewData] = []
     C: list[Transform] = []
@@ -98,7 +99,7 @@ def posed_views(dets: list[Detection], reports: list[ViewReport], target: Target
     for k, rep in enumerate(reports):
         if not rep.used:
             continue
-        vd = observations(dets[k], target, origin, options)
+        vd = observed[k] if observed and k in observed else observations(dets[k], target, origin, options)
         try:
             dof = 5 if axisymmetric else 6
             C.append(known[k] if k in known else
