@@ -44,7 +44,7 @@ from threadpoolctl import threadpool_limits
 from ..analysis.arm_guidance import ArmGoals, TrustRegion, arm_model, suggest_arm_views
 from ..analysis.candidates import Placement, distance_for_size, place
 from ..analysis.guidance import Linearisation, ViewPredictor
-from ..calibrate.handeye.options import HandEyeResult
+from ..calibrate.handeye.options import HandEyeOptions, HandEyeResult
 from ..calibrate.handeye.session import calibrate_hand_eye
 from ..calibrate.result import CalibrationError
 from ..detect.target_detector import detect_target
@@ -59,6 +59,7 @@ ARM_STRATEGIES = ("guided", "designed", "random", "easy_handeye")
 REDRAW_N = (8, 12, 20)
 REDRAW_STRATEGIES = ("guided", "designed", "random")  # easy_handeye's X is off by degrees: nothing to average
 MODE = "eye_in_hand"
+NO_JACKKNIFE = HandEyeOptions(mode=MODE, jackknife_groups=0)  # the redraws need X, not its sigma (the same X)
 
 
 def designed_views(target: Target, spec: ArmSpec) -> list[Transform]:
@@ -115,18 +116,21 @@ class ArmCell:
         return detect_target(img, self.target, name=f"v{self.shots:02d}.png"), tool @ noise
 
 
-def _evaluate(cell: ArmCell, dets: list[Any], tools: list[Transform]) -> tuple[dict[str, Any], HandEyeResult | None]:
+def _evaluate(cell: ArmCell, dets: list[Any], tools: list[Transform], he: HandEyeOptions | None = None
+              ) -> tuple[dict[str, Any], HandEyeResult | None]:
     try:
-        h = calibrate_hand_eye(dets, tools, cell.target, MODE)
+        h = calibrate_hand_eye(dets, tools, cell.target, MODE, he=he)
     except CalibrationError as e:
         return {"failed": str(e), "rot_err_deg": np.inf, "trans_err_mm": np.inf}, None
-    e_mm, e_deg, _, _ = hand_eye_errors(h.hand_eye, cell.X)
+    e_mm, e_deg, dt, dr = hand_eye_errors(h.hand_eye, cell.X)
     cal = h.calibration
     rms, worst, _, _ = true_errors(cell.camera, cal.K, cal.D, cal.model)
     return {"rot_err_deg": e_deg, "trans_err_mm": e_mm, "sigma_deg": float(np.linalg.norm(h.rotation_std_deg)),
             "sigma_mm": float(np.linalg.norm(h.translation_std_mm)), "fx_err_pct": 100 * (cal.K[0, 0] /
                                                                                           cell.camera.K[0, 0] - 1),
-            "proj_rms_px": rms, "proj_worst_px": worst, "used": h.views_used}, h
+            "proj_rms_px": rms, "proj_worst_px": worst, "used": h.views_used,
+            "rot_err_axes_deg": [float(v) for v in dr], "trans_err_axes_mm": [float(v) for v in dt],
+            "pp_err_px": [float(cal.K[0, 2] - cell.camera.K[0, 2]), float(cal.K[1, 2] - cell.camera.K[1, 2])]}, h
 
 
 def _plan(strategy: str, cell: ArmCell, seed: int) -> list[Transform]:
@@ -210,7 +214,7 @@ def redraw_session(row: dict[str, Any], draws: int, quick: bool = False) -> dict
         for key in out:
             n = int(key)
             if len(dets) >= n:
-                out[key].append(_evaluate(cell, dets[:n], tools[:n])[0])
+                out[key].append(_evaluate(cell, dets[:n], tools[:n], NO_JACKKNIFE)[0])
     return {"strategy": row["strategy"], "seed": seed, "draws": draws, "redraw": out}
 
 
