@@ -275,14 +275,29 @@ class ChainRows:
     variance: float
 
 
-def inverse_spd(A: np.ndarray) -> np.ndarray:
-    """The inverse of a symmetric positive definite matrix by Cholesky (the pseudo-inverse if it
-    is singular)."""
-    try:
-        c = scipy.linalg.cho_factor(A)
-        return np.asarray(scipy.linalg.cho_solve(c, np.eye(len(A))))
-    except np.linalg.LinAlgError:
-        return np.linalg.pinv(A)
+GAUGE_RCOND = 1e-10  # Jacobi-scaled eigenvalues below this times the largest are a gauge freedom, not information
+
+
+def inverse_spd(A: np.ndarray, rcond: float = GAUGE_RCOND) -> np.ndarray:
+    """The inverse of a symmetric positive semi-definite normal matrix: by Cholesky when it is
+    regular; when its Jacobi-scaled form S = D A D (D = diag(A)^-1/2, so that pixels, metres and
+    radians compare) has eigenvalues below ``rcond`` times its largest, the pseudo-inverse on the
+    others, D V diag(1 / lambda) V^T D. Such a direction is a gauge freedom no row sees (a single
+    ring's rotation about its own axis, taken by the target's pose and every view's pose together
+    in an arm's joint problem; scaled eigenvalue 1e-16 where the weakest real one is 1e-6): it gets
+    no variance, as in the intrinsic problem, whose ring poses have no such parameter. Cholesky
+    alone succeeds on it numerically and gives variances of 1e8 along it."""
+    d = np.sqrt(np.clip(np.diag(A), 1e-300, None))
+    lam, V = np.linalg.eigh(A / d[:, None] / d[None, :])
+    keep = lam > rcond * max(float(lam[-1]), 1e-300)
+    if keep.all():
+        try:
+            c = scipy.linalg.cho_factor(A)
+            return np.asarray(scipy.linalg.cho_solve(c, np.eye(len(A))))
+        except np.linalg.LinAlgError:
+            pass
+    Vk = V[:, keep] / d[:, None]
+    return np.asarray((Vk / lam[keep]) @ Vk.T)
 
 
 def centre_distances(prob: Problem, poses: np.ndarray) -> np.ndarray:
@@ -310,17 +325,17 @@ def camera_of(prob: Problem, lin: Linearisation) -> Camera:
 def semi_minor_px(view: ViewData) -> float:
     """Median over a view's circles of the semi-minor axis (px) of its edge points (evenly spread
     along the arc, their covariance has eigenvalues a^2 / 2 and b^2 / 2); NaN without circles."""
-    ids = view.circle_ids
+    ids = np.asarray(view.circle_ids)
     if len(ids) == 0:
         return float("nan")
-    order = np.argsort(ids, kind="stable")
-    cuts = np.flatnonzero(np.diff(ids[order])) + 1
-    out = []
-    for g in np.split(order, cuts):
-        if len(g) >= 4:
-            p = view.points[g] - view.points[g].mean(0)
-            out.append(np.sqrt(2 * max(float(np.linalg.eigvalsh(p.T @ p / len(g))[0]), 0.0)))
-    return float(np.median(out)) if out else float("nan")
+    _, group, n = np.unique(ids, return_inverse=True, return_counts=True)
+    pts = np.asarray(view.points, float)
+    mean = np.stack([np.bincount(group, pts[:, k]) for k in (0, 1)], 1) / n[:, None]
+    d = pts - mean[group]
+    a, b, c = (np.bincount(group, d[:, i] * d[:, j]) / n for i, j in ((0, 0), (0, 1), (1, 1)))
+    lam_min = 0.5 * (a + c) - np.sqrt(0.25 * (a - c) ** 2 + b * b)  # the 2 x 2 covariance's smaller eigenvalue
+    keep = n >= 4
+    return float(np.median(np.sqrt(2 * np.maximum(lam_min[keep], 0.0)))) if keep.any() else float("nan")
 
 
 @dataclass(frozen=True)

@@ -61,3 +61,25 @@ def test_the_best_tool_pose_lowers_the_predicted_hand_eye_sigma(arm_case) -> Non
     best = s.suggestions[0]
     assert best.predicted_rotation_deg < s.rotation_deg and best.predicted_translation_mm < s.translation_mm
     assert best.view.predicted_sigma_px < s.sigma_px
+
+
+def test_a_single_ring_has_a_gauge_the_prediction_leaves_out() -> None:
+    """A single ring's rotation about its own axis, taken by the target's pose and every view's pose
+    together, is seen by no row of the joint problem: the prediction gives it no variance (as the
+    intrinsic problem, whose ring poses lack it), so the joint model's projection sigma is the
+    intrinsic one or a little below (the chain adds information), not 1e4 px."""
+    target = resolve_target("ring_a4")
+    s = simulate_arm_session(target, ArmSpec(mode="eye_in_hand", views=12, width=W, height=H, k1=-0.1, seed=1,
+                                             systematic_mm=0.0))
+    dets = [detect_target(img, target) for img in s.images[target.name]]
+    h = calibrate_hand_eye(dets, list(s.robot_poses), target, "eye_in_hand", he=HandEyeOptions(jackknife_groups=0))
+    used = [k for k, v in enumerate(h.per_view) if v["used"]]
+    intrinsic = ViewPredictor(Linearisation.of_refinement(h.calibration.refinement), W, H)
+    model = arm_model(h, [s.robot_poses[k] for k in used], target, intrinsic.noise, W, H)
+    now, joint = intrinsic.sigma_now(), model.predictor.sigma_now()
+    assert 0.5 * now < joint <= 1.01 * now
+    sug = suggest_arm_views(model, target, TrustRegion(tuple(s.robot_poses[k] for k in used)), n=3)
+    assert sug.suggestions
+    for a in sug.suggestions:
+        assert 0 < a.view.predicted_sigma_px < joint
+        assert 0 < a.predicted_rotation_deg < sug.rotation_deg
