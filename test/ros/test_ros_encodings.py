@@ -7,13 +7,14 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 from encoded_images import encode_grey
 from ros_harness import NodeProcess, RosClient, latest_status, next_domain_id, require_netns, status_subscription
 
 from pascal_calib_ros.sim.session import SessionSpec, render_session_views
 from pascal_calib_ros.targets import resolve_target
 
-pytestmark = require_netns
+pytestmark = [require_netns, pytest.mark.ros]  # the real nodes over DDS (make test: inside tools/in_netns)
 
 ENCODINGS = ["yuv422", "uyvy", "yuv422_yuy2", "yuyv", "nv12", "nv21", "rgb16", "bgr16", "rgba16", "bgra16"]
 
