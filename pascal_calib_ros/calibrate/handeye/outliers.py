@@ -1,7 +1,10 @@
 """Views whose robot pose contradicts their images (a wrong frame, a pose from another view, an arm
 that moved during the exposure): each view is tested against X and Y solved from the other views
 (leave one out); the worst is dropped while it exceeds max(the floor, 8 x the others' median
-disagreement)."""
+disagreement). A view is blamed only if it also disagrees beyond the floor with the solution from
+all views, and only by others that fit among themselves (median disagreement within the floor):
+a subset with too little spread (a single ring's views, two of them around the same centre) can
+solve to a wrong X, or extrapolate badly, and would then blame a good view."""
 
 from __future__ import annotations
 
@@ -26,6 +29,18 @@ class Disagreement:
     reason: str
 
 
+def _fits_all(M: list[Transform], C: list[Transform], solve: Solver, he: HandEyeOptions, active: list[int]
+              ) -> list[bool]:
+    """Per active view whether it agrees within the floor (``outlier_mm``, ``outlier_deg``) with the
+    chain of X and Y solved from all active views (all False if they do not solve)."""
+    try:
+        Xa, Ya, Ca = solve(active)
+    except HandEyeError:
+        return [False] * len(active)
+    mm, deg = chain_disagreement([M[i] for i in active], Xa, Ya, Ca, he.mode)
+    return [bool(m <= he.outlier_mm and d <= he.outlier_deg) for m, d in zip(mm, deg, strict=True)]
+
+
 def drop_disagreeing_views(M: list[Transform], C: list[Transform], solve: Solver, he: HandEyeOptions,
                            axisymmetric: bool) -> tuple[list[int], dict[int, Disagreement]]:
     """(the views kept, the dropped ones with their disagreement), indices into M and C (module
@@ -33,14 +48,19 @@ def drop_disagreeing_views(M: list[Transform], C: list[Transform], solve: Solver
     active = list(range(len(M)))
     dropped: dict[int, Disagreement] = {}
     while len(active) > MIN_VIEWS:
+        fits_all = _fits_all(M, C, solve, he, active)
         worst: tuple[float, int, float, float, float, float] | None = None
         for j, a in enumerate(active):
+            if fits_all[j]:
+                continue  # within the floor of the solution from all views: a weak subset of the others blames it
             others = active[:j] + active[j + 1:]
             try:
                 Xo, Yo, Co = solve(others)
             except HandEyeError:
                 continue
             mo, do = chain_disagreement([M[i] for i in others], Xo, Yo, Co, he.mode)
+            if np.median(mo) > he.outlier_mm or np.median(do) > he.outlier_deg:
+                continue  # the others do not fit among themselves (a subset with too little spread): no verdict
             lim_mm = max(he.outlier_mm, 8 * float(np.median(mo)))
             lim_deg = max(he.outlier_deg, 8 * float(np.median(do)))
             cw = complete_ring_poses([M[a]], Xo, Yo, [C[a]]) if axisymmetric else [C[a]]
