@@ -24,7 +24,11 @@ from ..detect.detection import DEFAULT_PARAMS
 from ..geometry.camera import Camera
 from ..targets import Target
 
-DENSE = 256  # angles per circle on which the image arc length is measured
+# angles per circle on which the image arc length is measured: 64 chords of an imaged circle give its
+# length to 4e-4 relative ((2 pi / 64)^2 / 24); the kept points then move along the arc by at most a
+# profile spacing against 256 chords, the predicted sigmas by 2e-4 relative and the ranking not at all
+# (out of 301 arm candidates at 30 views of the ring grid), and the arm's ranking takes half the time
+DENSE = 64
 
 
 @dataclass(frozen=True)
