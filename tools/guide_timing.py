@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """Time of one guide step at N views, as the node runs it: the person guide's update after a
-stored view (:meth:`GuidedLive.update_now`: recalibrate, rank the next views) and an arm's
+stored view (:meth:`GuidedLive.update_now`: recalibrate, rank the next views; cold, and warm after
+the update at N - 1 views) and an arm's
 ``~/suggest`` (:func:`workflows.suggest.suggest_for_arm`: hand-eye calibration, arm model, ranking),
 cold (the CLI, the first call) and warm (the node's sequence: the call at N - 1 views, then the
 timed one at N, :class:`~pascal_calib_ros.workflows.suggest.WarmArmSuggestions`), each with the
@@ -130,23 +131,30 @@ def main() -> int:
 
     data = Path(tempfile.mkdtemp()) / "session.pkl"
     data.write_bytes(pickle.dumps((dets, robot)))
-    head = f"{'views':>5} {'person':>7} {'arm cold':>9} {'(estimate)':>10} {'arm warm':>9} {'(estimate)':>10}"
+    head = (f"{'views':>5} {'person':>7} {'warm':>5} {'arm cold':>9} {'(estimate)':>10} {'arm warm':>9} "
+            f"{'(estimate)':>10}")
     print(head + (f" {'before':>7} {'(estimate)':>10} {'cold x':>7} {'warm x':>7}" if args.before else "")
           + f" {'warm-cold: K px':>16} {'X mm':>8} {'X deg':>8}")
     for n in args.views:
         old = before_times(args.before, data, target.name, [n], args.repeat)[n] if args.before else None
-        person = []
+        person, person_warm = [], []
         for _ in range(args.repeat):
             g = GuidedLive(target, CalibrationOptions(), goal_sigma_px=0.01)
             t0 = time.perf_counter()
             g.update_now(dets[:n])
             person.append(time.perf_counter() - t0)
+            g = GuidedLive(target, CalibrationOptions(), goal_sigma_px=0.01)
+            g.update_now(dets[:n - 1])  # the update after the previous stored view
+            t0 = time.perf_counter()
+            g.update_now(dets[:n])
+            person_warm.append(time.perf_counter() - t0)
         c, w = best_of(args.repeat, lambda n=n: cold(n)), best_of(args.repeat, lambda n=n: warm(n))
         hc, hw = c[2], w[2]
         dK = float(np.abs(hw.calibration.K - hc.calibration.K).max())
         dX = 1000 * float(np.abs(hw.hand_eye.translation - hc.hand_eye.translation).max())
         dR = float(np.degrees((hw.hand_eye.rotation * hc.hand_eye.rotation.inv()).magnitude()))
-        line = f"{n:>5} {min(person):>7.2f} {c[0]:>9.2f} {c[1]:>10.2f} {w[0]:>9.2f} {w[1]:>10.2f}"
+        line = (f"{n:>5} {min(person):>7.2f} {min(person_warm):>5.2f} {c[0]:>9.2f} {c[1]:>10.2f} {w[0]:>9.2f} "
+                f"{w[1]:>10.2f}")
         if old is not None:
             line += f" {old[0]:>7.2f} {old[1]:>10.2f} {old[0] / c[0]:>7.1f} {old[0] / w[0]:>7.1f}"
         print(line + f" {dK:>16.1e} {dX:>8.1e} {dR:>8.1e}", flush=True)

@@ -30,8 +30,8 @@ from threadpoolctl import threadpool_limits
 
 from ..calibrate.handeye.view_poses import camera_pose
 from ..calibrate.options import MIN_VIEWS, CalibrationOptions
-from ..calibrate.pipeline import calibrate
 from ..calibrate.result import CalibrationError
+from ..calibrate.warm import IntrinsicStart, calibrate_session
 from ..detect.detection import Detection
 from ..geometry.camera import Camera
 from ..geometry.transform import Transform
@@ -110,6 +110,7 @@ class GuidedLive:
         self.error = ""
         self.update_seconds = float("nan")
         self.generation = 0  # counts resets: an update of views from before a reset is thrown away
+        self._start: IntrinsicStart | None = None  # the last recalibration, the next one's warm start
 
     def _state(self, width: int, height: int) -> GuideState:
         """The state, made on the first frame (its size gives the nominal camera). Under the lock."""
@@ -182,12 +183,15 @@ class GuidedLive:
                     return
                 self._state(ok[0].width, ok[0].height)
             assert self.state is not None
-            work = copy.copy(self.state)
+            work, start = copy.copy(self.state), self._start
         error, refinement = "", None
         if len(ok) >= MIN_VIEWS:
             try:
                 with threadpool_limits(1, "blas"):  # small dense products: one thread is faster on a shared machine
-                    refinement = calibrate(ok, self.target, self.options).refinement
+                    # warm from the last recalibration when the views only grew (calibrate/warm.py: the
+                    # cold result to the solver's tolerance), cold otherwise
+                    result, start = calibrate_session(ok, self.target, self.options, start)
+                refinement = result.refinement
                 if refinement is None or refinement.covariance is None:
                     error = "the calibration has no covariance to predict from; showing a fixed view"
             except CalibrationError as e:
@@ -203,7 +207,7 @@ class GuidedLive:
         with self.lock:
             if generation is not None and generation != self.generation:
                 return
-            self.state, self.error = work, error
+            self.state, self.error, self._start = work, error, start
             self.update_seconds = time.perf_counter() - t0
 
     def skip(self) -> str:
@@ -220,7 +224,7 @@ class GuidedLive:
         with self.lock:
             self.generation += 1
             self.state, self.size, self.computing, self._again = None, (0, 0), False, None
-            self.last_match, self.error = None, ""
+            self.last_match, self.error, self._start = None, "", None
 
     def view(self) -> GuideView:
         """The guide now, for the picture and ``~/status``."""

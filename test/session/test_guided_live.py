@@ -94,6 +94,38 @@ def test_the_guide_stores_matching_views_and_says_done_from_the_real_sigma(ring_
     assert guide.view().count == 0 and not guide.view().done
 
 
+def test_the_recalibration_after_a_stored_view_starts_warm_and_gives_the_cold_sigma(
+        ring_target: Target, monkeypatch: pytest.MonkeyPatch) -> None:
+    import pascal_calib_ros.calibrate.warm as warm
+
+    starts: list[bool] = []
+    first = warm._warm_first
+
+    def counted(*a: object, **k: object) -> object:
+        out = first(*a, **k)  # type: ignore[arg-type]
+        starts.append(out is not None)
+        return out
+
+    monkeypatch.setattr(warm, "_warm_first", counted)
+    dets = [_frame(ring_target, place(ring_target, TRUE, Placement((u * W, v * H), 0.45, 35.0, a, 0.0)), k)[1]
+            for k, (u, v, a) in enumerate([(0.5, 0.5, 0.0), (0.35, 0.4, 120.0), (0.65, 0.6, 240.0),
+                                           (0.4, 0.65, 60.0)])]
+    assert all(d.ok for d in dets)
+    grown = GuidedLive(ring_target, CalibrationOptions(), goal_sigma_px=0.01)
+    grown.update_now(dets[:3])
+    grown.update_now(dets)
+    assert starts == [True], starts  # the first call is cold, the second warm
+    cold = GuidedLive(ring_target, CalibrationOptions(), goal_sigma_px=0.01)
+    cold.update_now(dets)
+    assert starts == [True]
+    a, b = grown.view(), cold.view()
+    assert not a.error and not b.error and np.isfinite(a.sigma_px)
+    assert a.sigma_px == pytest.approx(b.sigma_px, rel=1e-3)
+    grown.reset()  # forgets the start: the next call is cold
+    grown.update_now(dets)
+    assert starts == [True]
+
+
 def test_bad_goal_is_refused(ring_target: Target) -> None:
     with pytest.raises(ValueError, match="goal_sigma_px"):
         GuidedLive(ring_target, CalibrationOptions(), goal_sigma_px=0.0)
@@ -126,7 +158,7 @@ def test_a_failing_update_is_reported_and_never_leaves_the_guide_computing(ring_
     def broken(*_: object, **__: object) -> None:
         raise np.linalg.LinAlgError("SVD did not converge")
 
-    monkeypatch.setattr(gl, "calibrate", broken)
+    monkeypatch.setattr(gl, "calibrate_session", broken)
     guide = GuidedLive(ring_target, CalibrationOptions(), goal_sigma_px=0.1)
     dets = []
     for k in range(3):
