@@ -348,3 +348,39 @@ def test_a_weak_subset_does_not_blame_a_good_view_of_a_single_ring() -> None:
             kept, dropped = drop_disagreeing_views(Mw, Cn, _closed_form_solver(Mw, Cn, True), he, True)
             assert 2 in dropped and len(kept) == 4, dropped
     assert blamed == 0
+
+
+def test_two_wrong_poses_are_both_dropped() -> None:
+    """Two views with another view's robot pose among eight: the solution from all views and every
+    leave-one-out subset are spoiled by the other wrong view, yet both are dropped and no good view
+    is (a rule that blamed a view only when the others fit among themselves dropped none; easy_handeye's
+    pattern in the arm study then gave X 7.6 degrees off)."""
+    from scipy.spatial.transform import Rotation
+
+    from pascal_calib_ros.analysis.candidates import Placement, distance_for_size, place
+    from pascal_calib_ros.calibrate.handeye.closed_form import chain_pose
+    from pascal_calib_ros.calibrate.handeye.options import HandEyeOptions
+    from pascal_calib_ros.calibrate.handeye.outliers import drop_disagreeing_views
+    from pascal_calib_ros.calibrate.handeye.session import _closed_form_solver
+    from pascal_calib_ros.sim.arm import DEFAULT_HAND_EYE, DEFAULT_TARGET
+    from pascal_calib_ros.targets import resolve_target
+
+    target = resolve_target("ring_a4")
+    cam = ArmSpec(width=640, height=480).camera()
+    X, Y = DEFAULT_HAND_EYE["eye_in_hand"], DEFAULT_TARGET["eye_in_hand"]
+    d = distance_for_size(target, cam, 0.45)
+    ps = [Placement((320 + 110 * np.cos(a), 240 + 80 * np.sin(a)), d * (0.9 + 0.05 * (k % 3)), 30, 45 * k, 50 * k - 150)
+          for k, a in enumerate(np.linspace(0, 2 * np.pi, 8, endpoint=False))]
+    C_yaml = [place(target, cam, p) for p in ps]
+    C = [c @ Transform.from_rt(np.eye(3), np.r_[target.local_origin, 0.0]) for c in C_yaml]  # the local frame
+    M = [chain_pose(Y @ c.inverse() @ X.inverse(), "eye_in_hand") for c in C_yaml]
+    for seed in range(3):
+        rng = np.random.default_rng(seed)
+        Cn = [Transform(Rotation.from_rotvec(rng.normal(0, np.radians(0.4), 3)) * c.rotation,
+                        c.translation + rng.normal(0, 2e-4, 3)) for c in C]
+        Mn = [m @ Transform.from_rotvec(rng.normal(0, np.radians(0.01), 3), rng.normal(0, 1e-4, 3)) for m in M]
+        Mw = list(Mn)
+        Mw[2], Mw[5] = Mn[6], Mn[0]  # two views carry another view's tool pose
+        kept, dropped = drop_disagreeing_views(Mw, Cn, _closed_form_solver(Mw, Cn, True), HandEyeOptions(), True)
+        assert set(dropped) == {2, 5}, dropped
+        assert kept == [0, 1, 3, 4, 6, 7]

@@ -2,9 +2,10 @@
 that moved during the exposure): each view is tested against X and Y solved from the other views
 (leave one out); the worst is dropped while it exceeds max(the floor, 8 x the others' median
 disagreement). A view is blamed only if it also disagrees beyond the floor with the solution from
-all views, and only by others that fit among themselves (median disagreement within the floor):
-a subset with too little spread (a single ring's views, two of them around the same centre) can
-solve to a wrong X, or extrapolate badly, and would then blame a good view."""
+all views: a subset with too little spread (a single ring's views, two of them around the same
+centre) can solve to a wrong X, or extrapolate badly, and would then blame a good view. (Asking
+also that the others fit among themselves kept every view when two were wrong: each one's others
+hold the other.)"""
 
 from __future__ import annotations
 
@@ -59,8 +60,6 @@ def drop_disagreeing_views(M: list[Transform], C: list[Transform], solve: Solver
             except HandEyeError:
                 continue
             mo, do = chain_disagreement([M[i] for i in others], Xo, Yo, Co, he.mode)
-            if np.median(mo) > he.outlier_mm or np.median(do) > he.outlier_deg:
-                continue  # the others do not fit among themselves (a subset with too little spread): no verdict
             lim_mm = max(he.outlier_mm, 8 * float(np.median(mo)))
             lim_deg = max(he.outlier_deg, 8 * float(np.median(do)))
             cw = complete_ring_poses([M[a]], Xo, Yo, [C[a]]) if axisymmetric else [C[a]]
