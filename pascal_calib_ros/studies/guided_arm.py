@@ -62,7 +62,8 @@ MODE = "eye_in_hand"
 # what the guide is asked for (it ranks by (sigma / goal)^2 summed over the three; the projection goal
 # below what the designed 20 views give in the image's corners, X's below their 0.0133 deg / 0.085 mm in
 # the guide's model). Asking for those sigmas instead weighted the ranking toward the translation and
-# gave X's rotation 1.30x the designed 20's at 12 views (1.17x with these; docs/guided-sessions.md)
+# gave X's rotation 1.30x the designed 20's at 12 views (1.17x with these; both before the 35 degree
+# candidates: docs/guided-sessions.md)
 GUIDED_GOALS = ArmGoals(0.05, 0.005, 0.05)
 NO_JACKKNIFE = HandEyeOptions(mode=MODE, jackknife_groups=0)  # the redraws need X, not its sigma (the same X)
 

@@ -308,39 +308,58 @@ def test_arm_accuracy_share_is_the_spread_of_x_under_drawn_arm_errors(ring_targe
     assert 0.6 < ratio < 1.6, (spread, ref.arm_share_mm)
 
 
-def test_a_weak_subset_does_not_blame_a_good_view_of_a_single_ring() -> None:
-    """Four views of a single ring, two of them around the same centre (a view and its wrist turn, as
-    the arm guide suggests): leaving a good view out leaves a subset that solves X badly or
-    extrapolates badly, and used to drop the good view in 2 of 3 noise draws (a real session then
-    went on with a degenerate set: X off by 137 degrees). With the views' normals 0.4 degrees and
-    the arm 0.01 degrees / 0.1 mm off, no view is dropped; a pose from another view still is."""
+def _ring_chain(placements: list, seeds: range) -> list[tuple[list[Transform], list[Transform]]]:
+    """A single ring's views at ``placements`` in an eye-in-hand cell: per seed the tool poses with
+    the arm 0.01 degrees / 0.1 mm off and the views' poses (local frame) with the normals 0.4
+    degrees and 0.2 mm off, (M, C)."""
     from scipy.spatial.transform import Rotation
 
-    from pascal_calib_ros.analysis.candidates import Placement, distance_for_size, place
+    from pascal_calib_ros.analysis.candidates import place
     from pascal_calib_ros.calibrate.handeye.closed_form import chain_pose
-    from pascal_calib_ros.calibrate.handeye.options import HandEyeOptions
-    from pascal_calib_ros.calibrate.handeye.outliers import drop_disagreeing_views
-    from pascal_calib_ros.calibrate.handeye.session import _closed_form_solver
     from pascal_calib_ros.sim.arm import DEFAULT_HAND_EYE, DEFAULT_TARGET
     from pascal_calib_ros.targets import resolve_target
 
     target = resolve_target("ring_a4")
     cam = ArmSpec(width=640, height=480).camera()
     X, Y = DEFAULT_HAND_EYE["eye_in_hand"], DEFAULT_TARGET["eye_in_hand"]
-    d = distance_for_size(target, cam, 0.45)
-    ps = [Placement((250, 200), d, 30, 20, 0), Placement((200, 270), d * 0.9, 32, -65, -72),
-          Placement((420, 260), d * 1.1, 35, 150, 40), Placement((200, 270), d * 0.9, 32, -5, -47),
-          Placement((330, 330), d, 28, 80, 120)]
-    C_yaml = [place(target, cam, p) for p in ps]
+    C_yaml = [place(target, cam, p) for p in placements]
     C = [c @ Transform.from_rt(np.eye(3), np.r_[target.local_origin, 0.0]) for c in C_yaml]  # the local frame
     M = [chain_pose(Y @ c.inverse() @ X.inverse(), "eye_in_hand") for c in C_yaml]
-    he = HandEyeOptions()
-    blamed = 0
-    for seed in range(30):
+    noisy = []
+    for seed in seeds:
         rng = np.random.default_rng(seed)
         Cn = [Transform(Rotation.from_rotvec(rng.normal(0, np.radians(0.4), 3)) * c.rotation,
                         c.translation + rng.normal(0, 2e-4, 3)) for c in C]
         Mn = [m @ Transform.from_rotvec(rng.normal(0, np.radians(0.01), 3), rng.normal(0, 1e-4, 3)) for m in M]
+        noisy.append((Mn, Cn))
+    return noisy
+
+
+def _ring_distance() -> float:
+    from pascal_calib_ros.analysis.candidates import distance_for_size
+    from pascal_calib_ros.targets import resolve_target
+
+    return distance_for_size(resolve_target("ring_a4"), ArmSpec(width=640, height=480).camera(), 0.45)
+
+
+def test_a_weak_subset_does_not_blame_a_good_view_of_a_single_ring() -> None:
+    """Four views of a single ring, two of them around the same centre (a view and its wrist turn, as
+    the arm guide suggests): leaving a good view out leaves a subset that solves X badly or
+    extrapolates badly, and used to drop the good view in 2 of 3 noise draws (a real session then
+    went on with a degenerate set: X off by 137 degrees). With the views' normals 0.4 degrees and
+    the arm 0.01 degrees / 0.1 mm off, no view is dropped; a pose from another view still is."""
+    from pascal_calib_ros.analysis.candidates import Placement
+    from pascal_calib_ros.calibrate.handeye.options import HandEyeOptions
+    from pascal_calib_ros.calibrate.handeye.outliers import drop_disagreeing_views
+    from pascal_calib_ros.calibrate.handeye.session import _closed_form_solver
+
+    d = _ring_distance()
+    ps = [Placement((250, 200), d, 30, 20, 0), Placement((200, 270), d * 0.9, 32, -65, -72),
+          Placement((420, 260), d * 1.1, 35, 150, 40), Placement((200, 270), d * 0.9, 32, -5, -47),
+          Placement((330, 330), d, 28, 80, 120)]
+    he = HandEyeOptions()
+    blamed = 0
+    for seed, (Mn, Cn) in enumerate(_ring_chain(ps, range(30))):
         _, dropped = drop_disagreeing_views(Mn[:4], Cn[:4], _closed_form_solver(Mn[:4], Cn[:4], True), he, True)
         blamed += bool(dropped)
         if seed < 5:  # a wrong frame among five views: the pose of another view
@@ -355,30 +374,15 @@ def test_two_wrong_poses_are_both_dropped() -> None:
     leave-one-out subset are spoiled by the other wrong view, yet both are dropped and no good view
     is (a rule that blamed a view only when the others fit among themselves dropped none; easy_handeye's
     pattern in the arm study then gave X 7.6 degrees off)."""
-    from scipy.spatial.transform import Rotation
-
-    from pascal_calib_ros.analysis.candidates import Placement, distance_for_size, place
-    from pascal_calib_ros.calibrate.handeye.closed_form import chain_pose
+    from pascal_calib_ros.analysis.candidates import Placement
     from pascal_calib_ros.calibrate.handeye.options import HandEyeOptions
     from pascal_calib_ros.calibrate.handeye.outliers import drop_disagreeing_views
     from pascal_calib_ros.calibrate.handeye.session import _closed_form_solver
-    from pascal_calib_ros.sim.arm import DEFAULT_HAND_EYE, DEFAULT_TARGET
-    from pascal_calib_ros.targets import resolve_target
 
-    target = resolve_target("ring_a4")
-    cam = ArmSpec(width=640, height=480).camera()
-    X, Y = DEFAULT_HAND_EYE["eye_in_hand"], DEFAULT_TARGET["eye_in_hand"]
-    d = distance_for_size(target, cam, 0.45)
+    d = _ring_distance()
     ps = [Placement((320 + 110 * np.cos(a), 240 + 80 * np.sin(a)), d * (0.9 + 0.05 * (k % 3)), 30, 45 * k, 50 * k - 150)
           for k, a in enumerate(np.linspace(0, 2 * np.pi, 8, endpoint=False))]
-    C_yaml = [place(target, cam, p) for p in ps]
-    C = [c @ Transform.from_rt(np.eye(3), np.r_[target.local_origin, 0.0]) for c in C_yaml]  # the local frame
-    M = [chain_pose(Y @ c.inverse() @ X.inverse(), "eye_in_hand") for c in C_yaml]
-    for seed in range(3):
-        rng = np.random.default_rng(seed)
-        Cn = [Transform(Rotation.from_rotvec(rng.normal(0, np.radians(0.4), 3)) * c.rotation,
-                        c.translation + rng.normal(0, 2e-4, 3)) for c in C]
-        Mn = [m @ Transform.from_rotvec(rng.normal(0, np.radians(0.01), 3), rng.normal(0, 1e-4, 3)) for m in M]
+    for Mn, Cn in _ring_chain(ps, range(3)):
         Mw = list(Mn)
         Mw[2], Mw[5] = Mn[6], Mn[0]  # two views carry another view's tool pose
         kept, dropped = drop_disagreeing_views(Mw, Cn, _closed_form_solver(Mw, Cn, True), HandEyeOptions(), True)
