@@ -15,6 +15,7 @@ $(STAMP): requirements.txt setup.py setup.cfg package.xml
 	$(PY) -m pip install --quiet -r requirements.txt
 	$(PY) -m pip install --quiet --no-deps -e .
 	$(PY) -m pascal_calib_ros.detect.edge_kernels  # compile the detection kernels once (numba caches them)
+	$(PY) -m pascal_calib_ros.calibrate.edge_row_kernels  # and the refinement's
 	touch $(STAMP)
 
 demo: $(STAMP)

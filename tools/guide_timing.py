@@ -50,13 +50,14 @@ from pascal_calib_ros.workflows import suggest as sm
 dets, robot = pickle.load(open(sys.argv[1], "rb"))
 target, out = resolve_target(sys.argv[2]), {}
 estimate = []
-calibrate_hand_eye = sm.calibrate_hand_eye
+name = "calibrate_hand_eye_warm" if hasattr(sm, "calibrate_hand_eye_warm") else "calibrate_hand_eye"
+wrapped = getattr(sm, name)
 def timed(*a, **k):
     t = time.perf_counter()
-    r = calibrate_hand_eye(*a, **k)
+    r = wrapped(*a, **k)
     estimate.append(time.perf_counter() - t)
     return r
-sm.calibrate_hand_eye = timed
+setattr(sm, name, timed)
 for n in map(int, sys.argv[3].split(",")):
     best = None
     for _ in range(int(sys.argv[4])):

@@ -49,12 +49,15 @@ from .candidates import (
     Placement,
     candidate_placements,
     default_feasibility,
-    feasible_candidates,
+    feasibility_problems_of,
+    place_arrays,
     placement_of,
+    transforms,
+    with_ray,
 )
 from .guidance import ChainRows, Linearisation, NoiseModel, Prediction, ViewPredictor, semi_minor_px
-from .view_ranking import RankedView, rank_candidates, unseen
-from .view_synthesis import synthesise_view
+from .view_ranking import RankedView, distinct_from_all, rank_candidates
+from .view_synthesis import synthesise_views
 
 
 @dataclass(frozen=True)
@@ -71,6 +74,18 @@ class ArmFrames:
         if self.mode == "eye_in_hand":
             return self.Y @ C.inverse() @ self.X.inverse()
         return self.X @ C @ self.Y.inverse()
+
+    def tool_poses(self, RC: np.ndarray, tC: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`tool_pose` of many camera_T_target poses (rotation matrices (N, 3, 3), translations
+        (N, 3)) at once, as rotation matrices and translations."""
+        RX, tX, RY, tY = self.X.R, self.X.translation, self.Y.R, self.Y.translation
+        if self.mode == "eye_in_hand":  # Y C^-1 X^-1
+            R1 = np.einsum("ij,nkj->nik", RY, RC)  # RY RC^T
+            R = np.einsum("nij,kj->nik", R1, RX)  # ... RX^T
+            return R, tY - np.einsum("nij,nj->ni", R1, tC) - np.einsum("nij,j->ni", R, tX)
+        R1 = np.einsum("ij,njk->nik", RX, RC)  # X C Y^-1
+        R = np.einsum("nij,kj->nik", R1, RY)
+        return R, tX + np.einsum("ij,nj->ni", RX, tC) - np.einsum("nij,j->ni", R, tY)
 
     def camera_pose(self, tool: Transform) -> Transform:
         """camera_T_target of the tool pose ``tool`` (T_base_tool)."""
@@ -92,12 +107,17 @@ class TrustRegion:
         """Per tool pose why it is outside ("" if inside)."""
         if not tools:
             return []
+        return self.problems_of(np.stack([t.R for t in tools]), np.array([t.translation for t in tools]))
+
+    def problems_of(self, R: np.ndarray, t: np.ndarray) -> list[str]:
+        """:meth:`problems` of tool poses given as rotation matrices (N, 3, 3) and translations (N, 3)."""
+        if not len(t):
+            return []
         vt = np.array([v.translation for v in self.visited])
-        tt = np.array([t.translation for t in tools])
-        dist = np.min(np.linalg.norm(tt[:, None, :] - vt[None, :, :], axis=2), axis=1)
+        dist = np.min(np.linalg.norm(t[:, None, :] - vt[None, :, :], axis=2), axis=1)
         vq = Rotation.concatenate([v.rotation for v in self.visited]).as_quat()
-        tq = Rotation.concatenate([t.rotation for t in tools]).as_quat()
-        turn = np.degrees(2 * np.arccos(np.clip(np.max(np.abs(tq @ vq.T), axis=1), -1.0, 1.0)))
+        tq = Rotation.from_matrix(R).as_quat()
+        turn = np.degrees(2 * np.arccos(np.clip(np.max(np.abs(np.einsum("nk,mk->nm", tq, vq)), axis=1), -1.0, 1.0)))
         out = []
         for d, a in zip(dist, turn, strict=True):
             if d > self.reach:
@@ -136,12 +156,9 @@ def arm_model(hres: HandEyeResult, robot_poses: Sequence[Transform], target: Tar
     lens, free_d = DISTORTION_CHOICES[cal.distortion_model]
     free = ("fx", "fy", "cx", "cy") + (() if options.zero_skew else ("skew",)) + free_d
     cam = cal.camera()
-    views, weights = [], []
-    for p in cal.poses:
-        T = Transform.from_rotvec(p[:3], p[3:6])
-        sv = synthesise_view(target, cam, T.R, T.translation, options)
-        views.append(sv.data)
-        weights.append(sv.weight)
+    P = np.asarray(cal.poses, float).reshape(-1, 6)
+    synth = synthesise_views(target, cam, Rotation.from_rotvec(P[:, :3]).as_matrix(), P[:, 3:6], options)
+    views, weights = [sv.data for sv in synth], [sv.weight for sv in synth]
     M = [chain_pose(g, hres.mode) for g in robot_poses]
     chain = RobotChain(M, hres.mode == "eye_in_hand", np.radians(max(hres.robot_error_deg, 1e-4)),
                        max(hres.robot_error_mm, 1e-3) / 1000, 1.0)
@@ -192,18 +209,16 @@ def chain_rows(model: ArmModel, tools: Sequence[Transform]) -> ChainRows:
 
     def rows(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         P = np.asarray(poses, float).reshape(len(M), -1)[:, :6]
-        h = 1e-6
+        h, n = 1e-6, prob.N_CHAIN
+        # every perturbation in one batch: the 12 globals up and down, then the 6 pose parameters
+        E, Ep = h * np.eye(n), h * np.eye(6)[:, None, :]
+        xys = np.concatenate([xy + E, xy - E, np.tile(xy, (12, 1))])
+        ps = np.concatenate([np.broadcast_to(P, (2 * n, len(M), 6)), P + Ep, P - Ep])
+        r = prob.chain_residuals(xys, ps, M)  # (36, candidates, 6)
         Jg = np.zeros((len(M), 6, ng))
-        for k in range(prob.N_CHAIN):
-            e = np.zeros(prob.N_CHAIN)
-            e[k] = h
-            d = (prob.chain_residuals(xy + e, P, M) - prob.chain_residuals(xy - e, P, M)) / (2 * h)
-            Jg[:, :, b + k] = d
+        Jg[:, :, b:b + n] = ((r[:n] - r[n:2 * n]) / (2 * h)).transpose(1, 2, 0)
         Jv = np.zeros((len(M), 6, pv))
-        for k in range(6):
-            e = np.zeros(6)
-            e[k] = h
-            Jv[:, :, k] = (prob.chain_residuals(xy, P + e, M) - prob.chain_residuals(xy, P - e, M)) / (2 * h)
+        Jv[:, :, :6] = ((r[2 * n:2 * n + 6] - r[2 * n + 6:]) / (2 * h)).transpose(1, 2, 0)
         return Jg, Jv
 
     return ChainRows(rows, float(prob.chain.scale**2))
@@ -278,12 +293,20 @@ def arm_candidates(model: ArmModel, target: Target, trust: TrustRegion, grid: Ca
     cam = model.predictor.camera_sized
     rules = rules or default_feasibility(target, cam.width)
     placements = candidate_placements(cam, grid, target) + local_placements(model, target, trust)
-    cands = feasible_candidates(target, cam, placements, rules)
+    ok = with_ray(cam, placements)
+    R, t = place_arrays(target, cam, ok)
+    # the trust region first (one batch of tool poses), then the feasibility rules on what is left
+    GR, Gt = model.frames.tool_poses(R, t)
+    inside = np.array([k for k, why in enumerate(trust.problems_of(GR, Gt)) if not why], int)
+    feasible = feasibility_problems_of(target, cam, R[inside], t[inside], rules)
+    keep = inside[[j for j, why in enumerate(feasible) if not why]]
     seen = [placement_of(target, cam, model.frames.camera_pose(g)) for g in trust.visited]
-    cands = unseen(cands, seen, cam.width, cam.height, roll_deg=DISTINCT_ROLL_DEG)
-    tools = [model.frames.tool_pose(pose) for _, pose in cands]
-    keep = [k for k, why in enumerate(trust.problems(tools)) if not why]
-    return [cands[k] for k in keep], [tools[k] for k in keep]
+    placed = [ok[k] for k in keep]
+    if seen and len(keep):
+        new = distinct_from_all(placed, seen, cam.width, cam.height, roll_deg=DISTINCT_ROLL_DEG)
+        keep, placed = keep[new], [p for p, n in zip(placed, new, strict=True) if n]
+    return (list(zip(placed, transforms(R[keep], t[keep]), strict=True)),
+            transforms(GR[keep], Gt[keep]))
 
 
 def suggest_arm_views(model: ArmModel, target: Target, trust: TrustRegion, n: int = 5,

@@ -94,6 +94,19 @@ def place_all(target: Target, camera: Camera, placements: list[Placement]) -> li
     pixel has no ray under this camera."""
     if not placements:
         return []
+    return transforms(*place_arrays(target, camera, placements))
+
+
+def transforms(R: np.ndarray, t: np.ndarray) -> list[Transform]:
+    """Transforms of rotation matrices (N, 3, 3) and translations (N, 3)."""
+    if not len(R):
+        return []
+    rots = Rotation.from_matrix(R)
+    return [Transform(rots[k], t[k]) for k in range(len(t))]
+
+
+def place_arrays(target: Target, camera: Camera, placements: list[Placement]) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`place_all` as rotation matrices (N, 3, 3) and translations (N, 3)."""
     pix = sorted({p.pixel for p in placements})
     rays = camera.unproject(np.array(pix, float))
     by_pixel = dict(zip(pix, rays, strict=True))
@@ -110,8 +123,7 @@ def place_all(target: Target, camera: Camera, placements: list[Placement]) -> li
     R = rotation_matrices(turn) @ rotation_matrices(tilt) @ rotation_matrices(roll)
     c = feature_centre(target)
     t = np.array([p.distance for p in placements])[:, None] * ray - R @ np.r_[c, 0.0]
-    rots = Rotation.from_matrix(R)
-    return [Transform(rots[k], t[k]) for k in range(len(t))]
+    return R, t
 
 
 def rotation_matrices(rv: np.ndarray) -> np.ndarray:
@@ -255,8 +267,15 @@ def feasibility_problems(target: Target, camera: Camera, poses: list[Transform],
     """Per pose (camera_T_target) why a view there is not feasible ("" if it is)."""
     if not poses:
         return []
-    R = np.stack([p.R for p in poses])
-    t = np.stack([p.translation for p in poses])
+    return feasibility_problems_of(target, camera, np.stack([p.R for p in poses]),
+                                   np.stack([p.translation for p in poses]), rules)
+
+
+def feasibility_problems_of(target: Target, camera: Camera, R: np.ndarray, t: np.ndarray, rules: Feasibility
+                            ) -> list[str]:
+    """:func:`feasibility_problems` of poses given as rotation matrices (C, 3, 3) and translations (C, 3)."""
+    if not len(R):
+        return []
     pts = outline_points(target)
     X = np.einsum("cij,nj->cni", R, np.c_[pts, np.zeros(len(pts))]) + t[:, None, :]
     inside = _in_image(camera, X, rules.margin_px)
@@ -267,7 +286,7 @@ def feasibility_problems(target: Target, camera: Camera, poses: list[Transform],
     tilt = np.degrees(np.arccos(np.clip(cosang, -1.0, 1.0)))
     circ, sq = smallest_feature_px(target, camera, R, t)
     out = []
-    for k in range(len(poses)):
+    for k in range(len(R)):
         if not inside[k]:
             out.append(f"the target leaves the image (margin {rules.margin_px:g} px)")
         elif tilt[k] > rules.max_tilt_deg:
@@ -323,13 +342,18 @@ def candidate_placements(camera: Camera, grid: CandidateGrid, target: Target) ->
     return out
 
 
-def feasible_candidates(target: Target, camera: Camera, placements: list[Placement], rules: Feasibility
-                        ) -> list[tuple[Placement, Transform]]:
-    """The placements whose pose passes the rules (:func:`feasibility_problems`), with their poses."""
+def with_ray(camera: Camera, placements: list[Placement]) -> list[Placement]:
+    """The placements whose pixel has a ray under ``camera``."""
     pix = sorted({p.pixel for p in placements})
     rays = camera.unproject(np.array(pix, float)) if pix else np.zeros((0, 3))
     has_ray = {q for q, r in zip(pix, rays, strict=True) if np.all(np.isfinite(r))}
-    ok = [p for p in placements if p.pixel in has_ray]
+    return [p for p in placements if p.pixel in has_ray]
+
+
+def feasible_candidates(target: Target, camera: Camera, placements: list[Placement], rules: Feasibility
+                        ) -> list[tuple[Placement, Transform]]:
+    """The placements whose pose passes the rules (:func:`feasibility_problems`), with their poses."""
+    ok = with_ray(camera, placements)
     poses = place_all(target, camera, ok)
     problems = feasibility_problems(target, camera, poses, rules)
     return [(p, pose) for p, pose, why in zip(ok, poses, problems, strict=True) if not why]

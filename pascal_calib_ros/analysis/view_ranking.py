@@ -31,7 +31,7 @@ from .candidates import (
     placement_of,
 )
 from .guidance import Linearisation, Prediction, ViewPredictor
-from .view_synthesis import synthesise_view
+from .view_synthesis import synthesise_views
 
 COARSE_POINTS = 24  # points per edge in the first pass
 COARSE_GRID = 4  # every 4th row and column of the pixel grid in the first pass
@@ -64,15 +64,15 @@ def yaml_pose(target: Target, R: np.ndarray, t: np.ndarray) -> Transform:
 def predict_poses(pred: ViewPredictor, target: Target, poses: list[Transform], options: CalibrationOptions,
                   coarse: bool = False, chain: object = None) -> Prediction:
     """:meth:`ViewPredictor.predict` for views of ``target`` at ``poses`` (camera_T_target)."""
-    views, params, weights = [], [], []
-    for pose in poses:
-        R, t = local_pose(target, pose)
-        sv = synthesise_view(target, pred.camera_sized, R, t, options, COARSE_POINTS if coarse else 0,
+    if not poses:
+        return pred.predict([], np.zeros((0, pred.prob.dof)), [], COARSE_GRID if coarse else 1, chain)  # type: ignore[arg-type]
+    Rt = [local_pose(target, pose) for pose in poses]
+    R, t = np.stack([r for r, _ in Rt]), np.stack([t for _, t in Rt])
+    synth = synthesise_views(target, pred.camera_sized, R, t, options, COARSE_POINTS if coarse else 0,
                              COARSE_ELEMENTS if coarse else 0)
-        views.append(sv.data)
-        weights.append(sv.weight)
-        params.append(pose_to_params(PlanePose(R, t), pred.prob.dof))
-    return pred.predict(views, np.array(params), weights, COARSE_GRID if coarse else 1, chain)  # type: ignore[arg-type]
+    params = np.array([pose_to_params(PlanePose(Ri, ti), pred.prob.dof) for Ri, ti in Rt])
+    return pred.predict([sv.data for sv in synth], params, [sv.weight for sv in synth], COARSE_GRID if coarse else 1,
+                        chain)  # type: ignore[arg-type]
 
 
 DISTINCT_TILT_DEG = 20.0  # tilts (as vectors: magnitude along the axis' direction) this far apart differ
@@ -168,7 +168,29 @@ def unseen(candidates: list[tuple[Placement, Transform]], seen: list[Placement],
     """The candidates distinct (:func:`distinct`) from every captured view. The covariance knows
     only the noise that averages out; a view taken again where one was taken repeats that view's
     detection biases (which do not), so the guide offers something new."""
-    return [c for c in candidates if all(distinct(c[0], p, width, height, roll_deg) for p in seen)]
+    if not candidates or not seen:
+        return list(candidates)
+    new = distinct_from_all([c[0] for c in candidates], seen, width, height, roll_deg)
+    return [c for c, keep in zip(candidates, new, strict=True) if keep]
+
+
+def distinct_from_all(a: list[Placement], b: list[Placement], width: int, height: int, roll_deg: float = 0.0
+                      ) -> np.ndarray:
+    """Per placement of ``a`` whether it is :func:`distinct` from every one of ``b`` (all pairs at once)."""
+
+    def arrays(ps: list[Placement]) -> tuple[np.ndarray, ...]:
+        ax = np.radians([p.axis_deg for p in ps])
+        tilt = np.array([p.tilt_deg for p in ps])[:, None] * np.c_[np.cos(ax), np.sin(ax)]
+        return (np.array([p.pixel for p in ps], float), np.array([p.distance for p in ps]),
+                np.array([p.roll_deg for p in ps]), tilt)
+
+    (pa, da, ra, ta), (pb, db, rb, tb) = arrays(a), arrays(b)
+    d = (np.hypot(pa[:, None, 0] - pb[None, :, 0], pa[:, None, 1] - pb[None, :, 1]) > 0.15 * np.hypot(width, height))
+    d |= np.abs(np.log(da[:, None] / db[None, :])) > np.log(1.3)
+    if roll_deg > 0:
+        d |= np.abs((ra[:, None] - rb[None, :] + 180.0) % 360.0 - 180.0) > roll_deg
+    d |= np.linalg.norm(ta[:, None, :] - tb[None, :, :], axis=2) > DISTINCT_TILT_DEG
+    return np.all(d, axis=1)
 
 
 def suggest_views(res: RefineResult, target: Target, width: int, height: int, n: int = 5,

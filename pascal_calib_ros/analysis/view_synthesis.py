@@ -46,27 +46,6 @@ def edge_spacing(target: Target) -> float:
     return 2 * DEFAULT_PARAMS.edge_spacing if target.grids else DEFAULT_PARAMS.edge_spacing
 
 
-def circle_points(camera: Camera, R: np.ndarray, t: np.ndarray, centers: np.ndarray, radii: np.ndarray,
-                  angles: np.ndarray) -> np.ndarray:
-    """Pixels (C, A, 2) of the circles (centres (C, 2), radii (C,), target plane) at ``angles``
-    (A,) or (C, A), pose X_cam = R X + t."""
-    ang = np.broadcast_to(angles, (len(centers), np.shape(angles)[-1]))
-    xy = centers[:, None, :] + radii[:, None, None] * np.stack([np.cos(ang), np.sin(ang)], -1)
-    X = np.concatenate([xy, np.zeros((*xy.shape[:2], 1))], -1) @ R.T + t
-    return camera.project(X.reshape(-1, 3)).reshape(*xy.shape[:2], 2)
-
-
-def _arc_positions(camera: Camera, R: np.ndarray, t: np.ndarray, centers: np.ndarray, radii: np.ndarray
-                   ) -> tuple[np.ndarray, np.ndarray]:
-    """Per circle the image arc length (C,) and, for interpolation, the dense angles' cumulative
-    arc lengths (C, DENSE + 1)."""
-    dense = np.linspace(0.0, 2 * np.pi, DENSE + 1)
-    q = circle_points(camera, R, t, centers, radii, dense)
-    seg = np.linalg.norm(np.diff(q, axis=1), axis=2)
-    arc = np.concatenate([np.zeros((len(q), 1)), np.cumsum(seg, 1)], 1)
-    return arc[:, -1], arc
-
-
 def _edge_angles(length: np.ndarray, arc: np.ndarray, spacing: float, least: int, per_edge: int, max_points: int
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(circle index, angle, weight) of every kept edge point: per circle the detector's n profiles
@@ -115,32 +94,62 @@ def synthesise_view(target: Target, camera: Camera, R: np.ndarray, t: np.ndarray
     (target's local frame, origin at its first circle's centre, -> camera), as measured by
     ``camera``. ``max_points`` > 0 caps the points per edge, ``max_elements`` > 0 the grid
     elements used (each kept row then weighs for those left out)."""
+    return synthesise_views(target, camera, np.asarray(R)[None], np.asarray(t)[None], options, max_points,
+                            max_elements)[0]
+
+
+def synthesise_views(target: Target, camera: Camera, R: np.ndarray, t: np.ndarray,
+                     options: CalibrationOptions = CalibrationOptions(),  # noqa: B008 (frozen dataclass)
+                     max_points: int = 0, max_elements: int = 0) -> list[SyntheticView]:
+    """:func:`synthesise_view` of many poses (R (V, 3, 3), t (V, 3)) at once: one projection of
+    every view's circles, one interpolation of every view's edge points."""
+    V = len(R)
     origin = np.array(target.circles[0].center if target.circles else (0.0, 0.0))
     circles = target.circles
     sub = circle_subset(target, max_elements)
+    C = len(sub)
     centers = (np.array([c.center for c in circles]).reshape(-1, 2) - origin)[sub]
     radii = np.array([c.radius for c in circles])[sub]
     dark = np.array([c.dark_inside for c in circles], bool)[sub]
     per_edge = max(8, min(options.max_points_per_edge, options.max_points_per_view // max(len(circles), 1)))
-    vd = ViewData(np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0), np.zeros(0), np.zeros(0, int))
-    weight = np.zeros(0)
-    if len(sub):
-        length, arc = _arc_positions(camera, R, t, centers, radii)
-        k, ang, wk = _edge_angles(length, arc, edge_spacing(target), 12 if target.grids else 24, per_edge, max_points)
-        n_grid = len(circles) - len(sub)
+
+    def project(P: np.ndarray, view: np.ndarray) -> np.ndarray:
+        """Pixels of target-plane points P (N, 2) seen in views ``view`` (N,)."""
+        X = np.einsum("nij,nj->ni", R[view, :, :2], P) + t[view]
+        return camera.project(X)
+
+    views = [ViewData(np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0), np.zeros(0), np.zeros(0, int))
+             for _ in range(V)]
+    weights = [np.zeros(0) for _ in range(V)]
+    if C:
+        # every view's circles at the dense angles, then the arc lengths (rows: view-major, circle-minor)
+        dense = np.linspace(0.0, 2 * np.pi, DENSE + 1)
+        xy = centers[:, None, :] + radii[:, None, None] * np.stack([np.cos(dense), np.sin(dense)], -1)  # (C, A, 2)
+        X = (R[:, None, None, :, 0] * xy[None, :, :, 0, None] + R[:, None, None, :, 1] * xy[None, :, :, 1, None]
+             + t[:, None, None, :])  # (V, C, A, 3): R [x, y, 0] + t
+        q = camera.project(X.reshape(-1, 3)).reshape(V * C, DENSE + 1, 2)
+        seg = np.linalg.norm(np.diff(q, axis=1), axis=2)
+        arc = np.concatenate([np.zeros((V * C, 1)), np.cumsum(seg, 1)], 1)
+        k, ang, wk = _edge_angles(arc[:, -1], arc, edge_spacing(target), 12 if target.grids else 24, per_edge,
+                                  max_points)
+        view, kc = k // C, k % C
+        n_grid = len(circles) - C
         if n_grid:  # the grid circles left out: the kept grid rows stand for them
             base = 2 * len(target.rings) + len(target.discs)
-            in_grid = k >= base
-            wk = np.where(in_grid, wk * (len(circles) - base) / max(len(sub) - base, 1), wk)
-        xy = centers[k] + radii[k, None] * np.stack([np.cos(ang), np.sin(ang)], 1)
-        vd = ViewData(camera.project(np.c_[xy, np.zeros(len(xy))] @ R.T + t), centers[k], radii[k],
-                      np.where(dark[k], 1.0, -1.0), sub[k])
-        weight = wk
+            wk = np.where(kc >= base, wk * (len(circles) - base) / max(C - base, 1), wk)
+        pts = centers[kc] + radii[kc, None] * np.stack([np.cos(ang), np.sin(ang)], 1)
+        pix = project(pts, view)
+        bounds = np.searchsorted(view, np.arange(V + 1))
+        for v in range(V):
+            sl = slice(bounds[v], bounds[v + 1])
+            c = kc[sl]
+            views[v] = ViewData(pix[sl], centers[c], radii[c], np.where(dark[c], 1.0, -1.0), sub[c])
+            weights[v] = wk[sl]
     board = target.checkerboard
     if board is not None and options.use_corners:
         obj = board.corner_points() - origin
-        X = np.concatenate([obj, np.zeros((len(obj), 1))], 1) @ R.T + t
-        vd.corners = camera.project(X)
-        vd.corner_obj = obj
-        weight = np.concatenate([weight, np.ones(2 * len(obj))])
-    return SyntheticView(vd, weight)
+        pix = project(np.tile(obj, (V, 1)), np.repeat(np.arange(V), len(obj))).reshape(V, len(obj), 2)
+        for v in range(V):
+            views[v].corners, views[v].corner_obj = pix[v], obj
+            weights[v] = np.concatenate([weights[v], np.ones(2 * len(obj))])
+    return [SyntheticView(vd, w) for vd, w in zip(views, weights, strict=True)]

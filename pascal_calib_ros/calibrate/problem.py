@@ -41,7 +41,7 @@ from ..geometry.camera import (
     project_with_jacobians,
     project_with_point_jacobian,
 )
-from ..geometry.lens import DISTORTION_CHOICES, PLUMB_BOB, LensModel
+from ..geometry.lens import DISTORTION_CHOICES, PLUMB_BOB, LensModel, PolynomialModel
 from .observations import ViewData
 
 # the plumb_bob parameter vector (other models: INTRINSIC_BASE + their coefficients)
@@ -139,6 +139,7 @@ class Problem:
         self.rows_of_view = [np.flatnonzero(rows == i) for i in range(self.nv)]
         self._ray_cache: tuple[bytes, np.ndarray] | None = None
         self._fit_cache: tuple[bytes, EdgeFit] | None = None
+        self._order_cache: tuple[int, np.ndarray | None, list[int]] | None = None
 
     # -- parameter packing -------------------------------------------------------------
     def pack(self, intr: np.ndarray, poses: list[np.ndarray], offsets: np.ndarray,
@@ -253,7 +254,17 @@ class Problem:
         intrinsics)."""
         key = K.tobytes() + np.asarray(D, float).tobytes()
         if self._ray_cache is None or self._ray_cache[0] != key:
-            self._ray_cache = (key, self.lens.undistort(pixels_to_normalized(self.pts, K), D, strict=False))
+            if self._compiled:
+                from . import edge_row_kernels
+
+                # Newton from the last camera's rays: an optimiser's next camera is near it
+                start = self._ray_cache[1] if self._ray_cache is not None else np.zeros((0, 3))
+                rays = np.empty((self.n_edge, 3))
+                edge_row_kernels.edge_rays(np.ascontiguousarray(self.pts, float), *self._kernel_camera(K, D), start,
+                                           rays)
+            else:
+                rays = self.lens.undistort(pixels_to_normalized(self.pts, K), D, strict=False)
+            self._ray_cache = (key, rays)
         return self._ray_cache[1]
 
     def _edge_fit(self, x: np.ndarray, intr0: np.ndarray, K: np.ndarray, D: np.ndarray, R: np.ndarray,
@@ -266,6 +277,10 @@ class Problem:
             return self._fit_cache[1]
         vi = self.view_of_pt
         flat = not self.shape_idx
+        if self._compiled:
+            fit = self._compiled_fit(K, D, R, t, offsets)
+            self._fit_cache = (key, fit)
+            return fit
         Rt = np.transpose(R, (0, 2, 1))
         Rb = Rt[:, :2, :] if flat else Rt  # board coordinates -> camera directions, as rows
         tv = t[vi]
@@ -314,9 +329,44 @@ class Problem:
         self._fit_cache = (key, fit)
         return fit
 
+    @property
+    def _compiled(self) -> bool:
+        """Whether the edge rows run in the compiled kernels (:mod:`.edge_row_kernels`: a flat target,
+        a polynomial lens)."""
+        return not self.shape_idx and isinstance(self.lens, PolynomialModel)
+
+    def _kernel_camera(self, K: np.ndarray, D: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(fx, fy, cx, cy, skew) and the 8 rational coefficients, as the kernels take them."""
+        D = np.asarray(D, float).reshape(-1)
+        return np.array([K[0, 0], K[1, 1], K[0, 2], K[1, 2], K[0, 1]]), np.r_[D, np.zeros(8 - len(D))]
+
+    def _compiled_fit(self, K: np.ndarray, D: np.ndarray, R: np.ndarray, t: np.ndarray, offsets: np.ndarray
+                      ) -> EdgeFit:
+        """:meth:`_edge_fit` by :func:`.edge_row_kernels.edge_fit`."""
+        from . import edge_row_kernels
+
+        n = self.n_edge
+        f, nrm, Q, Xc, dqdX = np.empty(n), np.empty((n, 2)), np.empty((n, 2)), np.empty((n, 3)), np.empty((n, 2, 3))
+        k, d8 = self._kernel_camera(K, D)
+        def c64(a: np.ndarray) -> np.ndarray:  # the one argument type the kernels are compiled for
+            return np.ascontiguousarray(a, np.float64)
+
+        edge_row_kernels.edge_fit(c64(self.pts), self._rays(K, D), self.view_of_pt, c64(self.centers), c64(self.radii),
+                                  self.signs, c64(offsets), c64(R), c64(t), k, d8, f, nrm, Q, Xc, dqdX)
+        return EdgeFit(f, nrm, Q, Xc, dqdX, np.zeros((0, 3, 3)))
+
     def _edge_jacobian(self, fit: EdgeFit, K: np.ndarray, D: np.ndarray, R: np.ndarray, dR: np.ndarray
                        ) -> tuple[np.ndarray, np.ndarray]:
         """dF/d globals and dF/d own view of the edge rows at ``fit``: -n^T dq/d theta at the foot point."""
+        if self._compiled:
+            from . import edge_row_kernels
+
+            Jg, Jv = np.zeros((len(fit.f), self.ng)), np.empty((len(fit.f), self.per_view))
+            k, d8 = self._kernel_camera(K, D)
+            edge_row_kernels.edge_jacobian(fit.nrm, fit.Q, fit.Xc, fit.dqdX, self.view_of_pt, self.signs, k, d8,
+                                           self.lens.n, np.asarray(self.free, np.int64),
+                                           np.ascontiguousarray(dR[:, : self.dof - 3]), self.use_offsets, Jg, Jv)
+            return Jg, Jv
         nrm = fit.nrm
         h = nrm[:, 0, None] * fit.dqdX[:, 0] + nrm[:, 1, None] * fit.dqdX[:, 1]  # n^T dq/dX
         Jg = np.zeros((len(fit.f), self.ng))
@@ -370,15 +420,27 @@ class Problem:
         Jgw = Jg * w[:, None]
         A[:ng, :ng] = Jg.T @ Jgw
         g[:ng] = Jgw.T @ f
-        for i, rows in enumerate(self.rows_of_view):
-            s = ng + i * pv
-            Jvi = Jv[rows]
-            Jviw = Jvi * w[rows, None]
-            A[s:s + pv, s:s + pv] = Jvi.T @ Jviw
-            A[:ng, s:s + pv] = Jg[rows].T @ Jviw
+        # the rows view by view (one gather, unless they are in that order already), then slices
+        order, bounds = self._view_order()
+        if order is not None:
+            f, Jg, Jv, w = f[order], Jg[order], Jv[order], w[order]
+        Jvw = Jv * w[:, None]
+        for i in range(self.nv):
+            s, a, b = ng + i * pv, bounds[i], bounds[i + 1]
+            A[s:s + pv, s:s + pv] = Jv[a:b].T @ Jvw[a:b]
+            A[:ng, s:s + pv] = Jg[a:b].T @ Jvw[a:b]
             A[s:s + pv, :ng] = A[:ng, s:s + pv].T
-            g[s:s + pv] = Jviw.T @ f[rows]
+            g[s:s + pv] = Jvw[a:b].T @ f[a:b]
         return A, g
+
+    def _view_order(self) -> tuple[np.ndarray | None, list[int]]:
+        """The rows sorted view by view (None: they are) and each view's first row in that order."""
+        key = id(self.rows_of_view)  # subclasses set their rows once, after this class's __init__
+        if self._order_cache is None or self._order_cache[0] != key:
+            order = np.concatenate(self.rows_of_view) if self.rows_of_view else np.zeros(0, int)
+            bounds = [0, *np.cumsum([len(r) for r in self.rows_of_view]).tolist()]
+            self._order_cache = (key, None if np.array_equal(order, np.arange(len(order))) else order, bounds)
+        return self._order_cache[1], self._order_cache[2]
 
     def dense_jacobian(self, Jg: np.ndarray, Jv: np.ndarray) -> np.ndarray:
         """The full Jacobian (rows, parameters), for tests and small problems."""

@@ -83,3 +83,43 @@ def test_a_single_ring_has_a_gauge_the_prediction_leaves_out() -> None:
     for a in sug.suggestions:
         assert 0 < a.view.predicted_sigma_px < joint
         assert 0 < a.predicted_rotation_deg < sug.rotation_deg
+
+
+def test_batched_tool_poses_and_chain_rows_match_one_at_a_time(arm_case) -> None:  # type: ignore[no-untyped-def]
+    """The candidates' tool poses (one batch of matrices) are :meth:`ArmFrames.tool_pose` of each,
+    in both modes, and their chain rows (every perturbation in one batch) the central differences
+    of each candidate's chain residuals alone."""
+    from scipy.spatial.transform import Rotation
+
+    from pascal_calib_ros.analysis.arm_guidance import ArmFrames, chain_rows
+    from pascal_calib_ros.calibrate.handeye.closed_form import chain_pose
+    from pascal_calib_ros.geometry.transform import Transform
+
+    target, model, poses = arm_case
+    rng = np.random.default_rng(5)
+    C = [Transform(Rotation.from_rotvec(rng.normal(0, 1, 3)), rng.normal(0, 0.3, 3)) for _ in range(7)]
+    for mode in ("eye_in_hand", "eye_to_hand"):
+        frames = ArmFrames(mode, model.frames.X, model.frames.Y)
+        R, t = frames.tool_poses(np.stack([c.R for c in C]), np.array([c.translation for c in C]))
+        for k, c in enumerate(C):
+            g = frames.tool_pose(c)
+            assert np.allclose(R[k], g.R, atol=1e-14) and np.allclose(t[k], g.translation, atol=1e-14)
+    _, tools = arm_candidates(model, target, TrustRegion(tuple(poses)))
+    tools = tools[:4]
+    prob, x = model.problem, model.predictor.lin.x
+    xy = prob.chain_params(x)
+    P = np.array([np.r_[model.frames.camera_pose(g).rotvec, model.frames.camera_pose(g).translation] for g in tools])
+    Jg, Jv = chain_rows(model, tools).rows(P)
+    h = 1e-6
+    for i, g in enumerate(tools):
+        M = [chain_pose(g, model.frames.mode)]
+        for k in range(prob.N_CHAIN):
+            e = np.zeros(prob.N_CHAIN)
+            e[k] = h
+            d = (prob.chain_residuals(xy + e, P[i:i + 1], M) - prob.chain_residuals(xy - e, P[i:i + 1], M)) / (2 * h)
+            assert np.allclose(Jg[i, :, prob.n_base + k], d[0], rtol=1e-7, atol=1e-6 * np.abs(d).max() + 1e-12)
+        for k in range(6):
+            e = np.zeros(6)
+            e[k] = h
+            d = (prob.chain_residuals(xy, P[i:i + 1] + e, M) - prob.chain_residuals(xy, P[i:i + 1] - e, M)) / (2 * h)
+            assert np.allclose(Jv[i, :, k], d[0], rtol=1e-7, atol=1e-6 * np.abs(d).max() + 1e-12)

@@ -53,7 +53,7 @@ class ChainProblem(Problem):
         self.n_robust = self.n_edge + 2 * self.n_corner
         self.rows_of_view = [np.concatenate([r, self.n_robust + 6 * i + np.arange(6)])
                              for i, r in enumerate(self.rows_of_view)]
-        self._RM = Rotation.concatenate([m.rotation for m in chain.chain]) if self.nv else None
+        self._RM = Rotation.concatenate([m.rotation for m in chain.chain]).as_matrix() if self.nv else None
         self._tM = np.array([m.translation for m in chain.chain]).reshape(-1, 3)
 
     def pack_chain(self, intr: np.ndarray, poses: list[np.ndarray], offsets: np.ndarray, xy: np.ndarray,
@@ -75,29 +75,37 @@ class ChainProblem(Problem):
         nb, nv = int(np.prod(batch)), poses.shape[-2]
         xy = np.repeat(xy.reshape(nb, 1, 12), nv, 1).reshape(-1, 12)
         poses = np.array(np.broadcast_to(poses, (*batch, nv, poses.shape[-1])).reshape(-1, poses.shape[-1]))
-        RX, tX = Rotation.from_rotvec(xy[:, 0:3]), xy[:, 3:6]
-        RY, tY = Rotation.from_rotvec(xy[:, 6:9]), xy[:, 9:12]
-        RC, tC = Rotation.from_rotvec(poses[:, :3]), poses[:, 3:6]
+        # rotation matrices (one conversion each way; the products by einsum, no BLAS)
+        RX, tX = Rotation.from_rotvec(xy[:, 0:3]).as_matrix(), xy[:, 3:6]
+        RY, tY = Rotation.from_rotvec(xy[:, 6:9]).as_matrix(), xy[:, 9:12]
+        RC, tC = Rotation.from_rotvec(poses[:, :3]).as_matrix(), poses[:, 3:6]
         if chain is None:
             RM, tM = self._RM, self._tM
         else:
-            RM, tM = Rotation.concatenate([m.rotation for m in chain]), np.array([m.translation for m in chain])
+            RM = Rotation.concatenate([m.rotation for m in chain]).as_matrix()
+            tM = np.array([m.translation for m in chain])
         assert RM is not None
         if nb > 1:
-            RM, tM = Rotation.concatenate([RM] * nb), np.tile(tM, (nb, 1))
+            RM, tM = np.tile(RM, (nb, 1, 1)), np.tile(tM, (nb, 1))
+
+        def apply(R: np.ndarray, v: np.ndarray) -> np.ndarray:
+            return np.einsum("nij,nj->ni", R, v)
+
+        def mul(A: np.ndarray, B: np.ndarray, transpose_b: bool = False) -> np.ndarray:
+            return np.einsum("nij,nkj->nik" if transpose_b else "nij,njk->nik", A, B)
+
         if self.chain.eye_in_hand:  # M^-1 Y C^-1 X^-1
-            RMi = RM.inv()
-            R1, t1 = RMi * RY, RMi.apply(tY - tM)
-            RCi = RC.inv()
-            R2, t2 = R1 * RCi, t1 - (R1 * RCi).apply(tC)
-            RXi = RX.inv()
-            R3, t3 = R2 * RXi, t2 - (R2 * RXi).apply(tX)
+            RMt = np.transpose(RM, (0, 2, 1))
+            R1, t1 = mul(RMt, RY), apply(RMt, tY - tM)
+            R2 = mul(R1, RC, True)
+            R3 = mul(R2, RX, True)
+            t3 = t1 - apply(R2, tC) - apply(R3, tX)
         else:  # M X C Y^-1
-            R1, t1 = RM * RX, RM.apply(tX) + tM
-            R2, t2 = R1 * RC, R1.apply(tC) + t1
-            RYi = RY.inv()
-            R3, t3 = R2 * RYi, t2 - (R2 * RYi).apply(tY)
-        return R3.as_rotvec().reshape(*batch, nv, 3), np.asarray(t3).reshape(*batch, nv, 3)
+            R1, t1 = mul(RM, RX), apply(RM, tX) + tM
+            R2, t2 = mul(R1, RC), apply(R1, tC) + t1
+            R3 = mul(R2, RY, True)
+            t3 = t2 - apply(R3, tY)
+        return Rotation.from_matrix(R3).as_rotvec().reshape(*batch, nv, 3), t3.reshape(*batch, nv, 3)
 
     def chain_residuals(self, xy: np.ndarray, poses: np.ndarray, chain: list[Any] | None = None) -> np.ndarray:
         """(V, 6) normalised chain residuals (rotation then translation), times ``scale`` ((B, V, 6)
