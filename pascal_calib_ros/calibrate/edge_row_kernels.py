@@ -228,11 +228,11 @@ def compile_all() -> float:
     K, D = np.array([500.0, 500.0, 320.0, 240.0, 0.0]), np.zeros(8)
     f, nrm, Q, Xc, dqdX = np.empty(n), np.empty((n, 2)), np.empty((n, 2)), np.empty((n, 3)), np.empty((n, 2, 3))
     edge_rays(pts, K, D, np.zeros((0, 3)), rays)
-    edge_fit(pts, rays, vi, np.zeros((n, 2)), np.full(n, 0.01), np.ones(n), np.zeros(1), R, t, K, D, f, nrm, Q, Xc,
-             dqdX)
-    free = np.arange(9, dtype=np.int64)
-    edge_jacobian(nrm, Q, Xc, dqdX, vi, np.ones(n), K, D, 5, free, np.zeros((1, 3, 3, 3)), True, np.empty((n, 9)),
-                  np.empty((n, 7)))
+    edge_fit(pts=pts, rays=rays, vi=vi, centers=np.zeros((n, 2)), radii=np.full(n, 0.01), signs=np.ones(n),
+             offsets=np.zeros(1), R=R, t=t, K=K, D=D, f=f, nrm=nrm, Q=Q, Xc=Xc, dqdX=dqdX)
+    edge_jacobian(nrm=nrm, Q=Q, Xc=Xc, dqdX=dqdX, vi=vi, signs=np.ones(n), K=K, D=D, n_coef=5,
+                  free=np.arange(9, dtype=np.int64), dR=np.zeros((1, 3, 3, 3)), use_offsets=True,
+                  Jg=np.empty((n, 9)), Jv=np.empty((n, 7)))
     return time.perf_counter() - t0
 
 

@@ -351,8 +351,10 @@ class Problem:
         def c64(a: np.ndarray) -> np.ndarray:  # the one argument type the kernels are compiled for
             return np.ascontiguousarray(a, np.float64)
 
-        edge_row_kernels.edge_fit(c64(self.pts), self._rays(K, D), self.view_of_pt, c64(self.centers), c64(self.radii),
-                                  self.signs, c64(offsets), c64(R), c64(t), k, d8, f, nrm, Q, Xc, dqdX)
+        edge_row_kernels.edge_fit(pts=c64(self.pts), rays=self._rays(K, D), vi=self.view_of_pt,
+                                  centers=c64(self.centers), radii=c64(self.radii), signs=self.signs,
+                                  offsets=c64(offsets), R=c64(R), t=c64(t), K=k, D=d8, f=f, nrm=nrm, Q=Q, Xc=Xc,
+                                  dqdX=dqdX)
         return EdgeFit(f, nrm, Q, Xc, dqdX, np.zeros((0, 3, 3)))
 
     def _edge_jacobian(self, fit: EdgeFit, K: np.ndarray, D: np.ndarray, R: np.ndarray, dR: np.ndarray
@@ -363,9 +365,11 @@ class Problem:
 
             Jg, Jv = np.zeros((len(fit.f), self.ng)), np.empty((len(fit.f), self.per_view))
             k, d8 = self._kernel_camera(K, D)
-            edge_row_kernels.edge_jacobian(fit.nrm, fit.Q, fit.Xc, fit.dqdX, self.view_of_pt, self.signs, k, d8,
-                                           self.lens.n, np.asarray(self.free, np.int64),
-                                           np.ascontiguousarray(dR[:, : self.dof - 3]), self.use_offsets, Jg, Jv)
+            edge_row_kernels.edge_jacobian(nrm=fit.nrm, Q=fit.Q, Xc=fit.Xc, dqdX=fit.dqdX, vi=self.view_of_pt,
+                                           signs=self.signs, K=k, D=d8, n_coef=self.lens.n,
+                                           free=np.asarray(self.free, np.int64),
+                                           dR=np.ascontiguousarray(dR[:, : self.dof - 3]),
+                                           use_offsets=self.use_offsets, Jg=Jg, Jv=Jv)
             return Jg, Jv
         nrm = fit.nrm
         h = nrm[:, 0, None] * fit.dqdX[:, 0] + nrm[:, 1, None] * fit.dqdX[:, 1]  # n^T dq/dX
