@@ -2,6 +2,7 @@
 composition) against central differences of its residuals."""
 
 import numpy as np
+from jacobians import numeric_jacobian
 
 from pascal_calib_ros.calibrate.observations import ViewData
 from pascal_calib_ros.calibrate.problem import Problem
@@ -56,13 +57,7 @@ def test_rig_jacobian_matches_central_differences() -> None:
     assert len(f) == sum(len(v.points) for v in views_l + views_r)
     J = prob.dense_jacobian(Jg, Jv)
     assert J.shape == (len(f), prob.size) == (len(f), 18 + 6 + 3 * 6 + 5)
-    num = np.zeros_like(J)
-    for k in range(prob.size):
-        h = 1e-5 * max(abs(x[k]), 1e-1)
-        xp, xm = x.copy(), x.copy()
-        xp[k] += h
-        xm[k] -= h
-        num[:, k] = (prob.residuals(xp, intr0) - prob.residuals(xm, intr0)) / (2 * h)
+    num = numeric_jacobian(lambda v: prob.residuals(v, intr0), x, 1e-5, 1e-1)
     rel = np.linalg.norm(J - num, axis=0) / np.maximum(np.linalg.norm(num, axis=0), 1e-12)
     assert np.all(rel < 2e-4), [(k, r) for k, r in enumerate(rel) if r >= 2e-4]
     # the normal equations assembled shot by shot are J^T W J and J^T W f
