@@ -9,11 +9,12 @@ export AMENT_PREFIX_PATH := $(abspath $(VENV))
 
 venv: $(STAMP)
 
-$(STAMP): requirements.txt setup.py setup.cfg package.xml
+$(STAMP): requirements.txt setup.py setup.cfg package.xml $(wildcard tools/msg_packages/*/* tools/msg_packages/*/msg/*) tools/build_msg_package.py
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -r requirements.txt
 	$(PY) -m pip install --quiet --no-deps -e .
+	$(PY) tools/build_msg_package.py --venv $(VENV)  # tf2_msgs (no wheel on PyPI) from its definition, ~10-20 s
 	$(PY) -m pascal_calib_ros.detect.edge_kernels  # compile the detection kernels once (numba caches them)
 	$(PY) -m pascal_calib_ros.calibrate.edge_row_kernels  # and the refinement's
 	touch $(STAMP)

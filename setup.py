@@ -15,6 +15,7 @@ setup(
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/config", glob("config/*.yaml")),
         ("share/" + package_name + "/config/targets", glob("config/targets/*.yaml")),
+        ("share/" + package_name + "/launch", glob("launch/*.launch.py")),
     ],
     # pip installs; a ROS install gets these from package.xml through rosdep (rosbags: see README)
     install_requires=["setuptools", "numpy", "scipy", "numba", "opencv-python-headless", "pyyaml", "matplotlib",
@@ -30,6 +31,7 @@ setup(
             "pascal-calib = pascal_calib_ros.cli:main",
             "calibration_node = pascal_calib_ros.ros.calibration_node:main",
             "replay_node = pascal_calib_ros.ros.replay_node:main",
+            "publisher = pascal_calib_ros.ros.publisher_node:main",
         ],
     },
 )

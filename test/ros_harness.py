@@ -4,8 +4,10 @@ tools/node_processes.py, shared with the demo and the load tests; not part of th
 from __future__ import annotations
 
 import itertools
+import json
 import os
 import random
+import subprocess
 import sys
 from pathlib import Path
 
@@ -13,10 +15,10 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
 
-from node_processes import NodeProcess, RosClient
+from node_processes import NodeProcess, RosClient, ros_env
 
 __all__ = ["NodeProcess", "RosClient", "camera_info_subscription", "latest_status", "next_domain_id",
-           "require_netns", "status_subscription"]
+           "require_netns", "status_subscription", "tf_static_echo"]
 
 _domains = itertools.count(random.Random(os.getpid()).randint(1, 60))
 
@@ -62,4 +64,22 @@ def camera_info_subscription(client: RosClient) -> list:
     got: list = []
     qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
     client.node.create_subscription(CameraInfo, "/pascal_calib/camera_info", got.append, qos)
+    return got
+
+
+def tf_static_echo(domain_id: int, children: list[str], timeout: float = 20.0) -> dict:
+    """A tf2 listener started now, in its own process (``tools/tf_static_echo.py``: a transient-local
+    subscriber of tf2_msgs/msg/TFMessage on /tf_static), waiting for transforms to ``children``.
+    Returns what it printed, ``{child: {"parent", "child", "translation", "rotation"}}`` under
+    ``"by_child"``, with its exit code (``"rc"``, 0: all arrived) and its output (``"output"``)."""
+    tool = Path(__file__).resolve().parents[1] / "tools" / "tf_static_echo.py"
+    args = [sys.executable, str(tool), "--timeout", str(timeout), *(f"--child={c}" for c in children)]
+    r = subprocess.run(args, env=ros_env(domain_id), capture_output=True, text=True, timeout=timeout + 60)
+    lines = r.stdout.strip().splitlines()
+    try:
+        got = json.loads(lines[-1]) if lines else {}
+    except json.JSONDecodeError:
+        got = {}
+    got["by_child"] = {t["child"]: t for t in got.get("transforms", [])}
+    got["rc"], got["output"] = r.returncode, r.stdout + r.stderr
     return got

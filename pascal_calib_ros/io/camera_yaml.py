@@ -6,6 +6,7 @@ distortion_coefficients, rectification_matrix (identity), projection_matrix (P =
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -70,9 +71,14 @@ def write_camera_yaml(path: str | Path, info: CameraInfoData) -> Path:
 def _read_matrix(doc: dict[str, Any], key: str, rows: int, cols: int | None = None) -> np.ndarray:
     m = doc.get(key)
     if not isinstance(m, dict) or "data" not in m:
-        raise CameraYamlError(f"missing {key}")
-    data = np.asarray(m["data"], float)
-    c = cols if cols is not None else int(m.get("cols", data.size // rows))
+        raise CameraYamlError(f"missing {key}" if m is None else f"{key}: not a matrix (rows, cols, data)")
+    try:
+        data = np.asarray(m["data"], float)
+        c = cols if cols is not None else int(m.get("cols", data.size // rows))
+    except (TypeError, ValueError):
+        raise CameraYamlError(f"{key}: data and cols must be numbers, got {m.get('data')!r}") from None
+    if data.ndim != 1 or not np.all(np.isfinite(data)):
+        raise CameraYamlError(f"{key}: data must be a list of finite numbers, got {m.get('data')!r}")
     if data.size != rows * c:
         raise CameraYamlError(f"{key}: expected {rows}x{c} values, got {data.size}")
     return data.reshape(rows, c)
@@ -88,9 +94,27 @@ def read_camera_yaml(path: str | Path) -> CameraInfoData:
         raise CameraYamlError(f"{p}: not a camera calibration YAML")
     try:
         return CameraInfoData(
-            int(doc["image_width"]), int(doc["image_height"]), str(doc.get("camera_name", "")),
+            _size(doc, "image_width"), _size(doc, "image_height"), str(doc.get("camera_name") or ""),
             _read_matrix(doc, "camera_matrix", 3, 3), _read_matrix(doc, "distortion_coefficients", 1).ravel(),
-            str(doc.get("distortion_model", "plumb_bob")), _read_matrix(doc, "rectification_matrix", 3, 3),
+            _text(doc, "distortion_model", "plumb_bob"), _read_matrix(doc, "rectification_matrix", 3, 3),
             _read_matrix(doc, "projection_matrix", 3, 4))
-    except KeyError as e:
-        raise CameraYamlError(f"{p}: missing {e}") from None
+    except CameraYamlError as e:
+        raise CameraYamlError(f"{p}: {e}") from None
+
+
+def _size(doc: dict[str, Any], key: str) -> int:
+    """A positive whole number of pixels; a missing, null or other value names the field."""
+    if key not in doc:
+        raise CameraYamlError(f"missing {key}")
+    v = doc[key]
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v != int(v) or v <= 0:
+        raise CameraYamlError(f"{key} must be a positive whole number of pixels, got {v!r}")
+    return int(v)
+
+
+def _text(doc: dict[str, Any], key: str, default: str) -> str:
+    """A string field (absent: ``default``); null or another type names the field."""
+    v = doc.get(key, default)
+    if not isinstance(v, str):
+        raise CameraYamlError(f"{key} must be a string, got {v!r}")
+    return v

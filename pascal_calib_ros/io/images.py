@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
 import cv2
@@ -31,6 +32,33 @@ def read_grey(path: str | Path) -> np.ndarray:
     if img.dtype not in (np.uint8, np.uint16):
         raise ImageReadError(f"{p}: unsupported pixel type {img.dtype}")
     return img
+
+
+class ImageWriteError(PascalCalibError):
+    """An image cannot be written (the folder cannot be made, no permission, disk full, no encoder)."""
+
+
+def write_image(path: str | Path, img: np.ndarray) -> Path:
+    """Write ``img`` in the format of ``path``'s suffix, creating the folder, atomically (a temporary
+    file, then a rename). Raises :class:`ImageWriteError` with the reason (``cv2.imwrite`` only
+    returns False)."""
+    p = Path(path)
+    try:
+        ok, data = cv2.imencode(p.suffix or ".png", img)
+    except cv2.error as e:
+        raise ImageWriteError(f"cannot write {p}: OpenCV cannot encode the image as {p.suffix}: {e}") from None
+    if not ok:
+        raise ImageWriteError(f"cannot write {p}: OpenCV cannot encode the image as {p.suffix}")
+    tmp = p.with_name(p.name + ".tmp")
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+        tmp.write_bytes(data.tobytes())
+        tmp.replace(p)
+    except OSError as e:
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
+        raise ImageWriteError(f"cannot write {p}: {e.strerror or e}") from None
+    return p
 
 
 def expand_image_args(args: list[str]) -> list[Path]:

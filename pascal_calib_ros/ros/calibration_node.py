@@ -8,8 +8,8 @@ on ``~/detections`` while someone listens, acknowledges every examined frame on
 ``~/examined_frames`` (std_msgs/Header; ``replay_node``'s lock-step mode waits for it), and offers
 ``~/calibrate``, ``~/reset``, ``~/capture`` and ``~/commit`` (std_srvs/Trigger). ``~/calibrate``
 runs the same workflow as the CLI (:mod:`..workflows.intrinsic`, :mod:`..workflows.hand_eye`); a
-good result is published on ``~/camera_info`` (and ``~/hand_eye``; reliable, transient local) and
-written to files; a failed calibration publishes nothing and keeps the previous.
+good result is published on ``~/camera_info`` (and ``~/hand_eye``; reliable, transient local; and on
+``/tf_static``, :mod:`.tf_static`) and written to files; a failed calibration publishes nothing and keeps the previous.
 """
 
 from __future__ import annotations
@@ -19,7 +19,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-import cv2
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import TransformStamped
 from rcl_interfaces.msg import SetParametersResult
@@ -45,6 +44,7 @@ from ..io.calibration_files import read_calibration_file
 from ..io.hand_eye_yaml import write_hand_eye_yaml
 from ..io.image_msgs import ImageConversionError, compressed_to_grey, grey_to_image_fields, image_to_grey
 from ..io.images import read_grey
+from ..session.collector import placement_points
 from ..session.live import LiveSession, Snapshot, max_motion_of
 from ..targets import Target, resolve_target
 from ..workflows.detection import detection_params
@@ -61,11 +61,13 @@ from ..workflows.outputs import (
 from ..workflows.verify import hand_eye_reference_of_result, reference_of_file, reference_of_result, verify_views
 from .commit import commit_camera_info
 from .conversions import camera_info_msg, transform_msg
+from .guard import guarded_callback, guarded_parameters, guarded_service, save_frame
 from .guide_services import NodeGuide
 from .image_subscription import MatchedImageSubscription
-from .params import ParameterError, declare_parameters, params_for, validate_parameters
+from .params import ParameterError, declare_parameters, param_value, params_for, validate_parameters
 from .robot_poses import RobotPoseInput
 from .status import status_message
+from .tf_static import StaticTransforms
 
 # a frame waits at most this long (wall time, or pose_max_age if longer) for the robot pose published
 # for its stamp: the pose comes on another topic and may be late on a loaded machine
@@ -82,14 +84,16 @@ class CalibrationNode(Node):
         if problems:
             raise ParameterError("invalid parameters: " + "; ".join(problems))
         self.target: Target = resolve_target(self.p("target"))
-        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.add_on_set_parameters_callback(guarded_parameters(self, self._on_set_parameters))
         self.pose_topic = str(self.p("robot_pose_topic"))
         self.session = LiveSession(self.p("min_views"), self.p("max_views"), self.p("min_view_distance"),
                                    max_motion_of(float(self.p("max_motion_px")), str(self.p("collect")),
-                                                 bool(self.pose_topic), bool(self.p("guide"))), str(self.p("collect")))
+                                                 bool(self.pose_topic), bool(self.p("guide"))), str(self.p("collect")),
+                                   board_points=placement_points(self.target))
         self.result: CalibrationResult | None = None
         self.result_msg: CameraInfo | None = None
         self.frames_received = self.frames_dropped = self.frames_bad = self.frames_examined = 0
+        self.frames_not_saved = 0  # stored frames output_dir could not take (save_frame)
         self._session_start = (0, 0)  # frames received / dropped before the last ~/reset
         self.last_error = ""
         self.frame_id = "camera"
@@ -124,26 +128,25 @@ class CalibrationNode(Node):
                                   durability=DurabilityPolicy.TRANSIENT_LOCAL, history=HistoryPolicy.KEEP_LAST)
         self.pub_examined = self.create_publisher(Header, "~/examined_frames", examined_qos)
         self.pub_hand_eye = self.create_publisher(TransformStamped, "~/hand_eye", LATCHED)
+        self.tf_static = StaticTransforms(self)  # the hand-eye transform on /tf_static, with ~/hand_eye
         services = ReentrantCallbackGroup()
-        self.create_service(Trigger, "~/calibrate", self._srv_calibrate, callback_group=services)
-        self.create_service(Trigger, "~/reset", self._srv_reset, callback_group=services)
-        self.create_service(Trigger, "~/commit", self._srv_commit, callback_group=services)
-        self.create_service(Trigger, "~/capture", self._srv_capture, callback_group=services)
-        self.create_service(Trigger, "~/verify", self._srv_verify, callback_group=services)
+        for name, srv in (("calibrate", self._srv_calibrate), ("reset", self._srv_reset), ("commit", self._srv_commit),
+                          ("capture", self._srv_capture), ("verify", self._srv_verify)):
+            self.create_service(Trigger, f"~/{name}", guarded_service(self, f"~/{name}", srv), callback_group=services)
         self.guide = NodeGuide(self, services, LATCHED)  # ~/suggest, ~/skip_suggestion, the person guide (guide:=true)
         self.set_info_client = self.create_client(SetCameraInfo, self.p("set_camera_info_service"),
                                                   callback_group=services)
         compressed = self.p("transport") == "compressed"
         self.topic = "image/compressed" if compressed else "image"
         self.image_sub = MatchedImageSubscription(self, self.topic, CompressedImage if compressed else Image,
-                                                  self._on_image, lambda: str(self.p("qos")),
-                                                  MutuallyExclusiveCallbackGroup())
-        self.create_timer(1.0, self.image_sub.ensure, callback_group=MutuallyExclusiveCallbackGroup())
-        self.create_timer(1.0, self.publish_status, callback_group=MutuallyExclusiveCallbackGroup())
+                                                  guarded_callback(self, "image callback", self._on_image),
+                                                  lambda: str(self.p("qos")), MutuallyExclusiveCallbackGroup())
+        for what, tick in (("image subscription check", self.image_sub.ensure), ("status", self.publish_status)):
+            self.create_timer(1.0, guarded_callback(self, what, tick), callback_group=MutuallyExclusiveCallbackGroup())
 
     # -- parameters ------------------------------------------------------------------
     def p(self, name: str) -> Any:
-        return self.get_parameter(name).value
+        return param_value(self, name)  # `~` expanded in output_dir and calibration_file
 
     def values(self) -> dict[str, Any]:
         return {p.name: self.p(p.name) for p in params_for("mono")}
@@ -237,10 +240,8 @@ class CalibrationNode(Node):
                                    drawing=self.pub_det.get_subscription_count() > 0, guide=self.guide.examine(det))
         if out.accepted:
             self.guide.stored(self.session.snapshot().views)  # the next suggestion, on the guide's own thread
-        if out.accepted and self.p("output_dir"):
-            frames = Path(self.p("output_dir")) / "frames"
-            frames.mkdir(parents=True, exist_ok=True)
-            cv2.imwrite(str(frames / f"{det.name}.png"), img)  # the report's worst views are read back by name
+        if out.accepted and self.p("output_dir"):  # the report's worst views are read back by name
+            save_frame(self, Path(self.p("output_dir")) / "frames" / f"{det.name}.png", img)
         vis = self.session.picture(img, det, out)
         if vis is not None:
             vis = self.guide.draw(vis, img.shape[1])
@@ -349,8 +350,10 @@ class CalibrationNode(Node):
         self.hand_eye_line, summary = out.answer(parent, cam_frame, len(snap.views), str(he_path), str(path))
         self.hand_eye_result = (out.result, parent, cam_frame)
         self._publish_camera(out.assessment.result)
-        self.pub_hand_eye.publish(transform_msg(out.result.hand_eye, parent, cam_frame,
-                                                self.get_clock().now().to_msg()))
+        tf = transform_msg(out.result.hand_eye, parent, cam_frame, self.get_clock().now().to_msg())
+        self.pub_hand_eye.publish(tf)
+        if not self.tf_static.send(tf):
+            self.get_logger().warn(self.tf_static.unavailable, once=True)
         self.get_logger().info(f"calibrated: {summary}")
         self.publish_status()
         return True, summary
@@ -434,6 +437,8 @@ class CalibrationNode(Node):
 
     def _srv_reset(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
         n = self.session.clear()
+        if self.robot is not None:  # a session's stamps start over (a looped bag, a restarted driver)
+            self.robot.poses.clear()
         self.guide.reset()
         self.auto_done_at = -1
         with self._pending_cv:

@@ -1,5 +1,6 @@
 """The tables of ``docs/nodes.md`` generated from the nodes' own tables (:data:`.params.PARAMS`,
-:data:`.interfaces.CALIBRATION_NODE_INTERFACES` and ``STEREO_NODE_INTERFACES``, ``replay_node.PARAMS``).
+:data:`.interfaces.CALIBRATION_NODE_INTERFACES` and ``STEREO_NODE_INTERFACES``, ``replay_node.PARAMS``,
+``publisher_node.PARAMS``).
 
 ``python -m pascal_calib_ros.ros.docs [--check] [docs/nodes.md]`` rewrites every block between
 ``<!-- generated: NAME -->`` and ``<!-- end generated -->``; with ``--check`` it only says whether the
@@ -61,18 +62,29 @@ def stereo_node_interfaces() -> str:
     return _interfaces(STEREO_NODE_INTERFACES)
 
 
+def _simple_parameters(table: tuple[tuple[str, Any, str], ...]) -> str:
+    rows = ["| parameter | default | meaning |", "|---|---|---|"]
+    rows += [f"| `{name}` | {_value(default)} | {desc} |" for name, default, desc in table]
+    return "\n".join(rows) + "\n"
+
+
 def replay_node_parameters() -> str:
     from .replay_node import PARAMS as REPLAY_PARAMS
 
-    rows = ["| parameter | default | meaning |", "|---|---|---|"]
-    rows += [f"| `{name}` | {_value(default)} | {desc} |" for name, default, desc in REPLAY_PARAMS]
-    return "\n".join(rows) + "\n"
+    return _simple_parameters(REPLAY_PARAMS)
+
+
+def publisher_parameters() -> str:
+    from .publisher_node import PARAMS as PUBLISHER_PARAMS
+
+    return _simple_parameters(PUBLISHER_PARAMS)
 
 
 TABLES = {"calibration-node-interfaces": calibration_node_interfaces,
           "calibration-node-stereo-interfaces": stereo_node_interfaces,
           "calibration-node-parameters": calibration_node_parameters,
-          "replay-node-parameters": replay_node_parameters}
+          "replay-node-parameters": replay_node_parameters,
+          "publisher-parameters": publisher_parameters}
 
 
 def render(text: str) -> str:

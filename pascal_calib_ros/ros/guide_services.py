@@ -24,6 +24,7 @@ from ..io.calibration_files import read_calibration_file
 from ..session.guide_overlay import draw_guide
 from ..session.guided_live import GuidedLive, GuideView
 from ..workflows.suggest import SuggestOptions, WarmArmSuggestions, suggest_for_person
+from .guard import guarded_service
 
 if TYPE_CHECKING:
     from .calibration_node import CalibrationNode
@@ -73,14 +74,16 @@ def person_answer(doc: dict[str, Any]) -> str:
 def previous_camera(node: CalibrationNode) -> Camera | None:
     """The camera of the node's calibration file (``calibration_file``, else where ``~/calibrate``
     writes it), if one is there: the guide draws its first views with it instead of a nominal
-    camera (focal = image width). An unreadable file is logged and left alone."""
+    camera (focal = image width). An unreadable file (a field missing or null, not a calibration) is
+    logged with the reason and left alone: the guide runs without it."""
     path = node.calibration_path()
-    if not path.exists():
-        return None
     try:
+        if not path.exists():
+            return None
         cam = read_calibration_file(path).camera
-    except PascalCalibError as e:
-        node.get_logger().warning(f"guide: {e}; the first views are drawn with a nominal camera")
+    except Exception as e:  # whatever the file holds, the node starts
+        why = str(e) if isinstance(e, PascalCalibError) else f"{path}: {type(e).__name__}: {e}"
+        node.get_logger().warning(f"guide: {why}; the first views are drawn with a nominal camera")
         return None
     node.get_logger().info(f"guide: the first views are drawn with the camera of {path} "
                            f"({cam.width}x{cam.height}, fx {cam.K[0, 0]:.1f} px)")
@@ -104,8 +107,10 @@ class NodeGuide:
         self.pub_poses = node.create_publisher(PoseArray, "~/suggested_tool_poses", latched)
         self.pub_pose = node.create_publisher(PoseStamped, "~/suggested_tool_pose", latched)
         self.last_seconds = float("nan")
-        node.create_service(Trigger, "~/suggest", self._srv_suggest, callback_group=MutuallyExclusiveCallbackGroup())
-        node.create_service(Trigger, "~/skip_suggestion", self._srv_skip, callback_group=services)
+        node.create_service(Trigger, "~/suggest", guarded_service(node, "~/suggest", self._srv_suggest),
+                            callback_group=MutuallyExclusiveCallbackGroup())
+        node.create_service(Trigger, "~/skip_suggestion", guarded_service(node, "~/skip_suggestion", self._srv_skip),
+                            callback_group=services)
 
     # -- the person guide's hooks (the detector thread) ------------------------------------
     def examine(self, det: Detection) -> tuple[bool, str] | None:

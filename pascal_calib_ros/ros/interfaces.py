@@ -50,7 +50,8 @@ CALIBRATION_NODE_INTERFACES = (
     Interface('~/calibrate', 'srv', 'std_srvs/Trigger',
               'calibrate the collected views; answers `fx= fy= cx= cy= rms= views= method= time= yaml=; projection '
               "sigma ...` (with `cross_validate`, also the cross-validation's two lines) or the reason it failed"),
-    Interface('~/reset', 'srv', 'std_srvs/Trigger', 'clear the views (the last good result stays published)'),
+    Interface('~/reset', 'srv', 'std_srvs/Trigger',
+              'clear the views and the robot pose buffer (the last good result stays published)'),
     Interface('~/capture', 'srv', 'std_srvs/Trigger',
               'examine the next still frame received after the call (within `capture_timeout`) and store it as a '
               'view even if it resembles a stored one; answers `view N stored: target at (x, y) px, tilt T deg, '
@@ -61,9 +62,19 @@ CALIBRATION_NODE_INTERFACES = (
               'reliable + transient local; eye_in_hand: `robot_tool_frame` → `camera_frame`; eye_to_hand: '
               '`robot_base_frame` → `camera_frame`; published only by a successful `~/calibrate` with `hand_eye` '
               'set'),
+    Interface('/tf_static', 'pub', 'tf2_msgs/TFMessage',
+              'the same hand-eye transform as `~/hand_eye`, when and only when that is published, for tf2 '
+              'listeners (MoveIt, RViz): reliable + transient local, depth 1, one message with every static '
+              'transform of the node, re-sent whole when one changes (`tf2_ros.StaticTransformBroadcaster` where '
+              '`tf2_ros` is installed, else a TFMessage publisher with its QoS; the PyPI venv builds `tf2_msgs` '
+              'with `tools/build_msg_package.py`); `~/status` `tf_static` lists what is broadcast, or why nothing '
+              'can be'),
     Interface('robot_pose_topic', 'sub', 'geometry_msgs/PoseStamped or TransformStamped',
               'the tool (flange) pose in the robot base; the type is detected once a publisher appears (any other '
-              'type: an error in the log and `~/status`)'),
+              'type: an error in the log and `~/status`); a pose stamped more than 10 s ahead of (or behind) the '
+              'frames being examined is set aside with the reason (`robot poses stamped 3600 s after the frame: clock '
+              'step or wrong stamps`), stamps going back more than 2 s (a clock step, a restarted driver, a looped '
+              'bag) start the pose buffer over; `~/status` `robot_pose_buffer` and a refused capture say which'),
     Interface('~/commit', 'srv', 'std_srvs/Trigger',
               "send the last good result to the driver's `sensor_msgs/SetCameraInfo` and report its answer"),
     Interface('~/verify', 'srv', 'std_srvs/Trigger',
@@ -122,6 +133,10 @@ STEREO_NODE_INTERFACES = (
               'reliable + transient local; the right optical frame in the left\'s (header `left_frame`, child '
               '`right_frame`: p_left = R\' p_right + t\', the inverse of stereo.yaml\'s `X_right = R X_left + T`), '
               'what a static transform publisher would send; published only by a successful `~/calibrate`'),
+    Interface('/tf_static', 'pub', 'tf2_msgs/TFMessage',
+              'the same transform as `~/stereo_transform` (`left_frame` → `right_frame`), when and only when '
+              'that is published; reliable + transient local, as `tf2_ros.StaticTransformBroadcaster` sends it; '
+              '`~/status` `tf_static` says what is broadcast'),
     Interface('~/calibrate', 'srv', 'std_srvs/Trigger',
               'calibrate the stored shots jointly (as `pascal-calib stereo`); answers `left: fx= fy= cx= cy= rms= '
               'views=; right: ...; X_right = R X_left + T: T=[..] m (+- [..] mm), angle .. deg (+- [..] deg); '

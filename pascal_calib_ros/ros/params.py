@@ -4,6 +4,7 @@ choices, range), their checks against each other and the target, and the Markdow
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from typing import Any
 
@@ -54,9 +55,11 @@ PARAMS = (
           ' `~/calibrate`, the report (`report.pdf`, `report.png`, `report.json`, see Calibration report) here; '
           'stereo: `left/<shot>.png` and `right/<shot>.png` (the input of `pascal-calib stereo`), `left.yaml`, '
           '`right.yaml`, `stereo.yaml`, `left.calibration.json`, `right.calibration.json` and `report/`; default '
-          '`~/.ros/camera_info/<camera_name>/` (the files only)',),
+          '`~/.ros/camera_info/<camera_name>/` (the files only); `~` is expanded; a frame that cannot be written '
+          'is logged and counted in `~/status` (`frames_not_saved`)',),
     Param('calibration_file', '',
-          'YAML path; default `<output_dir>/<camera_name>.yaml`, else `~/.ros/camera_info/<camera_name>.yaml`',
+          'YAML path (`~` is expanded); default `<output_dir>/<camera_name>.yaml`, else '
+          '`~/.ros/camera_info/<camera_name>.yaml`',
           modes=MONO),
     Param('zero_skew', True,
           'estimate K with zero skew',),
@@ -176,6 +179,13 @@ PARAMS = (
 
 READ_ONLY = {"mode", "transport", "robot_pose_topic", "guide", "left_set_camera_info_service",
              "right_set_camera_info_service"}
+PATHS = {"output_dir", "calibration_file"}  # a leading `~` is expanded when the node reads them
+
+
+def param_value(node: Any, name: str) -> Any:
+    """The value of parameter ``name`` on ``node``; in a path (:data:`PATHS`) ``~`` is expanded."""
+    v = node.get_parameter(name).value
+    return os.path.expanduser(v) if name in PATHS and isinstance(v, str) else v
 
 
 def params_for(mode: str) -> tuple[Param, ...]:
@@ -202,7 +212,7 @@ def validate_parameters(changes: dict[str, Any], current: dict[str, Any]) -> lis
             method = values.get("method", "")
             if method and method not in t.methods():
                 problems.append(f"method {method!r} does not fit target {t.name} (supports {', '.join(t.methods())})")
-            if values.get("target_shape") and not (t.grids or t.checkerboards):
+            if values.get("target_shape") and not (t.grids or t.boards):
                 problems.append(f"target_shape needs a grid or checkerboard target; {t.name} has neither")
         except TargetError as e:
             problems.append(f"target: {e}")

@@ -14,6 +14,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from ..geometry.transform import Transform, TransformError
 from ..session.arm_session import PoseBuffer
+from .guard import guarded_callback
 
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 TRANSFORM_STAMPED = "geometry_msgs/msg/TransformStamped"
@@ -32,7 +33,8 @@ class RobotPoseInput:
         self.ignored = 0
         self._group = MutuallyExclusiveCallbackGroup()
         self.subscribe()
-        node.create_timer(0.5, self.subscribe, callback_group=MutuallyExclusiveCallbackGroup())
+        node.create_timer(0.5, guarded_callback(node, "robot pose subscription", self.subscribe),
+                          callback_group=MutuallyExclusiveCallbackGroup())
 
     @property
     def resolved(self) -> str:
@@ -64,7 +66,9 @@ class RobotPoseInput:
         best_effort = any(i.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for i in infos)
         qos = QoSProfile(depth=200, history=HistoryPolicy.KEEP_LAST,
                          reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE)
-        self.sub = self.node.create_subscription(msg_type, self.topic, self.on_pose, qos, callback_group=self._group)
+        self.sub = self.node.create_subscription(msg_type, self.topic,
+                                                 guarded_callback(self.node, "robot pose callback", self.on_pose),
+                                                 qos, callback_group=self._group)
         self.error = ""
         self.node.get_logger().info(f"robot poses: subscribed to {name} ({self.type}, "
                                     f"{'best-effort' if best_effort else 'reliable'})")
@@ -92,12 +96,19 @@ class RobotPoseInput:
             self.error = f"robot pose ignored: {e}"
             self.node.get_logger().warn(self.error, throttle_duration_sec=5.0)
             return
+        restarts = self.poses.restarts
+        if not self.poses.add(int(msg.header.stamp.sec) * 10**9 + int(msg.header.stamp.nanosec), T):
+            self.error = self.poses.stamp_note  # set aside for its stamp (far from the frames')
+            self.node.get_logger().warn(self.error, throttle_duration_sec=5.0)
+            return
+        if self.poses.restarts != restarts:
+            self.node.get_logger().warn(self.poses.stamp_note)
         if self.error.startswith("robot pose"):  # the poses are usable again
             self.error = ""
-        self.poses.add(int(msg.header.stamp.sec) * 10**9 + int(msg.header.stamp.nanosec), T)
 
     def status(self, views_with_pose: int) -> dict[str, Any]:
         """The robot poses' lines of ``~/status``."""
         return {"robot_pose_topic": self.resolved, "robot_pose_type": self.type or "unknown (no publisher seen)",
                 "robot_poses_received": self.poses.received, "robot_poses_ignored": self.ignored,
-                "robot_pose_error": self.error, "views_with_robot_pose": views_with_pose}
+                "robot_pose_error": self.error, "robot_pose_buffer": self.poses.describe(),
+                "views_with_robot_pose": views_with_pose}

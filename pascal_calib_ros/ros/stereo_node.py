@@ -16,9 +16,10 @@ camera_info`` and ``~/right/camera_info`` (K, D, R = the rectification rotation,
 rectified projection, the right camera's ``P[0,3] = -fx' * baseline``; reliable, transient
 local) and ``~/stereo_transform`` (geometry_msgs/TransformStamped, latched: the right optical
 frame's pose in the left's, header ``left_frame``, child ``right_frame``; it carries
-``X_left = R' X_right + t'``, the inverse of stereo.yaml's ``X_right = R X_left + T``), and
-written (left.yaml, right.yaml, stereo.yaml, the calibration records). ``~/commit`` sends each
-camera's CameraInfo to its own driver's ``set_camera_info`` service and reports both answers.
+``X_left = R' X_right + t'``, the inverse of stereo.yaml's ``X_right = R X_left + T``; the same
+transform on ``/tf_static``, :mod:`.tf_static`), and written (left.yaml, right.yaml, stereo.yaml, the
+calibration records). ``~/commit`` sends each camera's CameraInfo to its own driver's
+``set_camera_info`` service and reports both answers.
 """
 
 from __future__ import annotations
@@ -29,7 +30,6 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-import cv2
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import TransformStamped
 from rcl_interfaces.msg import SetParametersResult
@@ -47,6 +47,7 @@ from ..calibrate.result import CalibrationError
 from ..detect.target_detector import detect_target
 from ..errors import PascalCalibError
 from ..io.image_msgs import ImageConversionError, compressed_to_grey, image_to_grey
+from ..session.collector import placement_points
 from ..session.frame_pairing import SIDES, ApproximatePairer, Dropped
 from ..session.live import max_motion_of
 from ..session.stereo_live import StereoSession
@@ -62,9 +63,11 @@ from ..workflows.stereo_session import (
 )
 from .commit import commit_pair
 from .conversions import camera_info_msg, image_msg, transform_msg
+from .guard import guarded_callback, guarded_parameters, guarded_service, save_frame
 from .image_subscription import MatchedImageSubscription
-from .params import ParameterError, declare_parameters, params_for, validate_parameters
+from .params import ParameterError, declare_parameters, param_value, params_for, validate_parameters
 from .stereo_status import stereo_status_message
+from .tf_static import StaticTransforms
 
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                      history=HistoryPolicy.KEEP_LAST)
@@ -82,15 +85,17 @@ class StereoCalibrationNode(Node):
         if problems:
             raise ParameterError("invalid parameters: " + "; ".join(problems))
         self.target: Target = resolve_target(self.p("target"))
-        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.add_on_set_parameters_callback(guarded_parameters(self, self._on_set_parameters))
         self.session = StereoSession(self.p("min_views"), self.p("max_views"), self.p("min_view_distance"),
-                                     max_motion_of(float(self.p("max_motion_px")), "auto", False))
+                                     max_motion_of(float(self.p("max_motion_px")), "auto", False),
+                                     board_points=placement_points(self.target))
         self.pairer = ApproximatePairer(float(self.p("sync_slop")))
         self.outcome: StereoOutcome | None = None
         self.info_msgs: tuple[CameraInfo, CameraInfo] | None = None
         self.result_line = self.last_error = self.report_note = ""
         self.frame_ids = ["", ""]
         self.frames_bad = [0, 0]
+        self.frames_not_saved = 0  # stored frames output_dir could not take (save_frame)
         self.pairs_examined = self.pairs_dropped = 0
         self._session_start = 0  # pairs dropped before the last ~/reset
         self.calibrating = threading.Lock()
@@ -112,15 +117,15 @@ class StereoCalibrationNode(Node):
         self.pub_info = (self.create_publisher(CameraInfo, "~/left/camera_info", LATCHED),
                          self.create_publisher(CameraInfo, "~/right/camera_info", LATCHED))
         self.pub_transform = self.create_publisher(TransformStamped, "~/stereo_transform", LATCHED)
+        self.tf_static = StaticTransforms(self)  # the rig transform on /tf_static, with ~/stereo_transform
         self.pub_status = self.create_publisher(DiagnosticArray, "~/status", 10)
         self.pub_det = self.create_publisher(Image, "~/detections", 2)
         examined_qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE,
                                   durability=DurabilityPolicy.TRANSIENT_LOCAL, history=HistoryPolicy.KEEP_LAST)
         self.pub_examined = self.create_publisher(Header, "~/examined_frames", examined_qos)
         services = ReentrantCallbackGroup()
-        self.create_service(Trigger, "~/calibrate", self._srv_calibrate, callback_group=services)
-        self.create_service(Trigger, "~/reset", self._srv_reset, callback_group=services)
-        self.create_service(Trigger, "~/commit", self._srv_commit, callback_group=services)
+        for name, srv in (("calibrate", self._srv_calibrate), ("reset", self._srv_reset), ("commit", self._srv_commit)):
+            self.create_service(Trigger, f"~/{name}", guarded_service(self, f"~/{name}", srv), callback_group=services)
         self.set_info_clients = (
             self.create_client(SetCameraInfo, self.p("left_set_camera_info_service"), callback_group=services),
             self.create_client(SetCameraInfo, self.p("right_set_camera_info_service"), callback_group=services))
@@ -131,14 +136,15 @@ class StereoCalibrationNode(Node):
         group = MutuallyExclusiveCallbackGroup()  # one pairer: the two image callbacks never run at once
         self.subs = tuple(MatchedImageSubscription(
             self, f"{side}/image/compressed" if compressed else f"{side}/image",
-            CompressedImage if compressed else Image, partial(self._on_image, c),
+            CompressedImage if compressed else Image, guarded_callback(self, f"{side} image callback",
+                                                                       partial(self._on_image, c)),
             lambda: str(self.p("qos")), group) for c, side in enumerate(SIDES))
-        self.create_timer(1.0, self._ensure_subscriptions, callback_group=MutuallyExclusiveCallbackGroup())
-        self.create_timer(1.0, self.publish_status, callback_group=MutuallyExclusiveCallbackGroup())
+        for what, tick in (("image subscription check", self._ensure_subscriptions), ("status", self.publish_status)):
+            self.create_timer(1.0, guarded_callback(self, what, tick), callback_group=MutuallyExclusiveCallbackGroup())
 
     # -- parameters ------------------------------------------------------------------
     def p(self, name: str) -> Any:
-        return self.get_parameter(name).value
+        return param_value(self, name)  # `~` expanded in output_dir and calibration_file
 
     def values(self) -> dict[str, Any]:
         return {p.name: self.p(p.name) for p in params_for("stereo")}
@@ -238,10 +244,8 @@ class StereoCalibrationNode(Node):
         out = self.session.examine(dets, (_stamp_ns(left), _stamp_ns(right)),
                                    drawing=self.pub_det.get_subscription_count() > 0)
         if out.stored and self.p("output_dir"):
-            for c, side in enumerate(SIDES):
-                folder = Path(self.p("output_dir")) / side
-                folder.mkdir(parents=True, exist_ok=True)
-                cv2.imwrite(str(folder / f"{name}.png"), imgs[c])  # the CLI's input, and the report's images
+            for c, side in enumerate(SIDES):  # the CLI's input, and the report's images
+                save_frame(self, Path(self.p("output_dir")) / side / f"{name}.png", imgs[c])
         vis = self.session.picture((imgs[0], imgs[1]), dets, out)
         if vis is not None:
             self.pub_det.publish(image_msg(vis, left.header))
@@ -340,8 +344,11 @@ class StereoCalibrationNode(Node):
         self.outcome, self.info_msgs = outcome, msgs
         for pub, msg in zip(self.pub_info, msgs, strict=True):
             pub.publish(msg)
-        self.pub_transform.publish(transform_msg(outcome.rig.pose_in_reference(1), str(self.p("left_frame")),
-                                                 str(self.p("right_frame")), self.get_clock().now().to_msg()))
+        tf = transform_msg(outcome.rig.pose_in_reference(1), str(self.p("left_frame")), str(self.p("right_frame")),
+                           self.get_clock().now().to_msg())
+        self.pub_transform.publish(tf)
+        if not self.tf_static.send(tf):
+            self.get_logger().warn(self.tf_static.unavailable, once=True)
 
     # -- services -------------------------------------------------------------------------
     def _srv_calibrate(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:

@@ -51,6 +51,7 @@ def stereo_status_message(node: StereoCalibrationNode) -> DiagnosticArray:
         "pairs": paired, "pairs_examined": examined, "pairs_dropped": dropped,
         "pairs_dropped_session": node.pairs_dropped_session(),
         "frames_bad_left": node.frames_bad[0], "frames_bad_right": node.frames_bad[1],
+        "frames_not_saved": node.frames_not_saved,
         "last_pair_stamp_difference_s": "" if pair_gap is None else f"{pair_gap:.6f}",
         "sync_slop": node.pairer.slop_s, "sync_note": never,
         "qos_left": node.subs[0].qos_name, "qos_right": node.subs[1].qos_name,
@@ -58,7 +59,7 @@ def stereo_status_message(node: StereoCalibrationNode) -> DiagnosticArray:
         **{f"coverage_{side}_{k}": round(v, 3) for c, side in enumerate(SIDES) for k, v in cov[c].items()},
         **{f"rejected: {k}": v for k, v in sorted(rejected.items())},
         **{f"rejected {side}: {k}": v for c, side in enumerate(SIDES) for k, v in sorted(cam_rejected[c].items())},
-        "result": node.result_line, "report": node.report_note,
+        "result": node.result_line, "report": node.report_note, "tf_static": node.tf_static.describe(),
     }
     st.values = [KeyValue(key=k, value=str(v)) for k, v in kv.items()]
     return DiagnosticArray(header=node.header(0), status=[st])

@@ -220,7 +220,7 @@ def read_arm_bag(path: str | Path, image_topic: str = "", pose_topic: str = "", 
         notes.append(f"the TransformStamped poses have no child_frame_id: the tool frame is called {child}")
 
     span_s = (max(s for s, _ in samples) - min(s for s, _ in samples)) * 1e-9
-    buffer = PoseBuffer(horizon_s=span_s + 1.0, max_samples=len(samples) + 1)  # keeps every sample
+    buffer = PoseBuffer(horizon_s=span_s + 1.0, max_samples=len(samples) + 1, jump_back_s=None)  # keeps every sample
     for s, T in samples:
         buffer.add(s, T)
     sample_stamps = sorted({s for s, _ in samples})

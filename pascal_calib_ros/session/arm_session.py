@@ -14,7 +14,13 @@ examined frame:
 * **the robot pose at the image stamp** (:class:`PoseBuffer`): interpolated between the two
   nearest samples around the stamp (slerp of the rotation, linear translation) when both lie
   within ``max_age`` of it, else the nearest sample within ``max_age`` (a stamp just after the
-  newest sample: the arm rests and its driver has not published again yet), else refused;
+  newest sample: the arm rests and its driver has not published again yet), else refused with
+  the reason (how far the samples are from the frame, and why poses were set aside);
+* **stamps that cannot be right do not poison the buffer**: a pose stamped more than
+  :data:`STAMP_TOLERANCE_S` ahead of the frame being examined (plus the time since it arrived) or
+  behind it is set aside, counted, with the reason ("robot poses stamped 3600 s after the frame:
+  clock step or wrong stamps"); a pose stamped more than :data:`JUMP_BACK_S` before the newest
+  sample (a clock step back, a restarted driver, a looped bag) starts the buffer over, and says so;
 * **captures** (:class:`CaptureSlot`): one request at a time; the first frame *received after*
   the request that is still decides it: stored, or refused with the reason (no target, cut by the
   border, blurred, no robot pose). Frames that are moving are skipped until ``capture_timeout``,
@@ -37,6 +43,10 @@ from ..geometry.transform import Transform, interpolate
 ROBOT_STILL_MM = 0.1  # the robot moved if its pose changed by more than this between two frames
 ROBOT_STILL_DEG = 0.01
 POSE_HORIZON_S = 30.0  # robot pose samples kept (older ones are dropped)
+JUMP_BACK_S = 2.0  # a pose stamped this much before the newest sample: the clock went back, start over
+STAMP_TOLERANCE_S = 10.0  # a pose stamped this much ahead of (or behind) the examined frames is set aside
+MAX_ASIDE = 200  # poses set aside that are kept, in case the frames' clock follows theirs
+NOTE_FRESH_S = 30.0  # a refusal quotes why poses were set aside (or the buffer started over) this long after
 MAX_POSE_SAMPLES = 20000
 MOVING = "moving"
 NO_POSE = "no robot pose"
@@ -82,54 +92,136 @@ def pose_change(a: Transform, b: Transform) -> tuple[float, float]:
 # -- robot poses by stamp -----------------------------------------------------------------------
 
 class PoseBuffer:
-    """Robot pose samples (T_base_tool) by stamp (ns); thread-safe; bounded in time and count."""
+    """Robot pose samples (T_base_tool) by stamp (ns); thread-safe; bounded in time and count. Poses
+    whose stamps cannot belong to the frames are set aside, and a jump back starts it over (module
+    docstring); ``jump_back_s=None``: no restart (a recorded bag read whole, in any order)."""
 
-    def __init__(self, horizon_s: float = POSE_HORIZON_S, max_samples: int = MAX_POSE_SAMPLES) -> None:
+    def __init__(self, horizon_s: float = POSE_HORIZON_S, max_samples: int = MAX_POSE_SAMPLES,
+                 jump_back_s: float | None = JUMP_BACK_S, tolerance_s: float = STAMP_TOLERANCE_S) -> None:
         self.horizon_ns = int(horizon_s * 1e9)
         self.max_samples = max_samples
+        self.jump_back_ns = None if jump_back_s is None else int(jump_back_s * 1e9)
+        self.tolerance_ns = int(tolerance_s * 1e9)
         self._stamps: list[int] = []
         self._poses: list[Transform] = []
         self._lock = threading.Lock()
         self._arrived = threading.Condition(self._lock)
+        self._frame: tuple[int, float] | None = None  # (stamp ns, monotonic s) of the newest examined frame
+        self._aside: list[tuple[int, Transform]] = []  # the newest poses set aside (note_frame may take them back)
         self.received = 0
+        self.set_aside = 0  # poses refused for their stamp since the last clear()
+        self.restarts = 0  # backward jumps since the last clear()
+        self.stamp_note = ""  # the last pose set aside, or the last restart: why
+        self._note_at = 0.0  # monotonic s of stamp_note
 
     def __len__(self) -> int:
         return len(self._stamps)
 
-    def add(self, stamp_ns: int, pose: Transform) -> None:
+    def note_frame(self, stamp_ns: int, now: float | None = None) -> None:
+        """A frame with this stamp is being examined: pose stamps are judged against it. Poses set
+        aside whose stamps fit this frame (the frames' clock followed the poses' step) are taken
+        back."""
+        with self._lock:
+            self._frame = (stamp_ns, time.monotonic() if now is None else now)
+            if self._aside and abs(self._aside[-1][0] - stamp_ns) <= self.tolerance_ns:
+                aside, self._aside = self._aside, []
+                for t, pose in aside:
+                    if not self._misplaced(t, now):
+                        self._keep(t, pose, now)
+
+    def _misplaced(self, stamp_ns: int, now: float | None) -> str:
+        """Why a pose stamped ``stamp_ns`` cannot belong to the frames being examined (empty: it can)."""
+        if self._frame is None:
+            return ""
+        frame_ns, seen = self._frame
+        elapsed_ns = int(max((time.monotonic() if now is None else now) - seen, 0.0) * 1e9)
+        if stamp_ns > frame_ns + elapsed_ns + self.tolerance_ns:
+            return (f"robot poses stamped {(stamp_ns - frame_ns) * 1e-9:.0f} s after the frame: clock step or "
+                    "wrong stamps (set aside)")
+        if stamp_ns < frame_ns - self.tolerance_ns:
+            return (f"robot poses stamped {(frame_ns - stamp_ns) * 1e-9:.0f} s before the frame: clock step or "
+                    "wrong stamps (set aside)")
+        return ""
+
+    def add(self, stamp_ns: int, pose: Transform, now: float | None = None) -> bool:
+        """Keep a sample (False: set aside for its stamp, :attr:`stamp_note` says why)."""
         with self._lock:
             self.received += 1
-            k = bisect.bisect_right(self._stamps, stamp_ns)
-            if k > 0 and self._stamps[k - 1] == stamp_ns:  # a repeated stamp: the newer message wins
-                self._poses[k - 1] = pose
-                return
-            self._stamps.insert(k, stamp_ns)
-            self._poses.insert(k, pose)
-            cut = bisect.bisect_left(self._stamps, self._stamps[-1] - self.horizon_ns)
-            cut = max(cut, len(self._stamps) - self.max_samples)
-            if cut > 0:
-                del self._stamps[:cut], self._poses[:cut]
-            self._arrived.notify_all()
+            why = self._misplaced(stamp_ns, now)
+            if why:
+                self.set_aside += 1
+                self._note(why, now)
+                self._aside.append((stamp_ns, pose))
+                del self._aside[:-MAX_ASIDE]
+                return False
+            self._keep(stamp_ns, pose, now)
+            return True
+
+    def _keep(self, stamp_ns: int, pose: Transform, now: float | None) -> None:
+        """Insert a sample (the lock held): start over on a jump back, drop what is out of bounds."""
+        if self.jump_back_ns is not None and self._stamps and stamp_ns < self._stamps[-1] - self.jump_back_ns:
+            self.restarts += 1
+            self._note(f"robot pose stamps jumped back {(self._stamps[-1] - stamp_ns) * 1e-9:.1f} s (clock step "
+                       "back, driver restart or looped bag): pose buffer started over", now)
+            self._stamps.clear()
+            self._poses.clear()
+        k = bisect.bisect_right(self._stamps, stamp_ns)
+        if k > 0 and self._stamps[k - 1] == stamp_ns:  # a repeated stamp: the newer message wins
+            self._poses[k - 1] = pose
+            return
+        self._stamps.insert(k, stamp_ns)
+        self._poses.insert(k, pose)
+        cut = bisect.bisect_left(self._stamps, self._stamps[-1] - self.horizon_ns)
+        cut = max(cut, len(self._stamps) - self.max_samples)
+        if cut > 0:
+            del self._stamps[:cut], self._poses[:cut]
+        self._arrived.notify_all()
+
+    def _note(self, why: str, now: float | None) -> None:
+        self.stamp_note, self._note_at = why, time.monotonic() if now is None else now
 
     def wait_until_covers(self, stamp_ns: int, timeout_s: float) -> bool:
-        """Wait (at most ``timeout_s``) until a sample at or after ``stamp_ns`` has arrived: an
-        image and the pose published for it come on different topics, and the image may be
-        examined first (tf2's message filter waits the same way). True if one has arrived."""
+        """Note the frame (:meth:`note_frame`), then wait (at most ``timeout_s``) until a sample at
+        or after ``stamp_ns`` has arrived: an image and the pose published for it come on
+        different topics, and the image may be examined first (tf2's message filter waits the same
+        way). True if one has arrived."""
+        self.note_frame(stamp_ns)
         with self._arrived:
             return self._arrived.wait_for(lambda: bool(self._stamps) and self._stamps[-1] >= stamp_ns,
                                           timeout=max(timeout_s, 0.0))
 
     def clear(self) -> None:
+        """Forget every sample, the frame reference and the stamp notes (``~/reset``)."""
         with self._lock:
             self._stamps.clear()
             self._poses.clear()
+            self._frame = None
+            self._aside.clear()
+            self.set_aside = self.restarts = 0
+            self.stamp_note = ""
 
-    def lookup(self, stamp_ns: int, max_age_s: float) -> tuple[Transform | None, str]:
-        """The pose at ``stamp_ns`` (module docstring) or (None, the reason)."""
+    def describe(self) -> str:
+        """The buffer in a line for ``~/status``: samples held and their span, poses set aside, restarts."""
+        with self._lock:
+            n = len(self._stamps)
+            span = (self._stamps[-1] - self._stamps[0]) * 1e-9 if n else 0.0
+            out = f"{n} sample(s) over {span:.2f} s"
+            if self.set_aside:
+                out += f"; {self.set_aside} set aside for their stamps"
+            if self.restarts:
+                out += f"; started over {self.restarts} time(s) on a backward jump"
+            return out + (f"; last: {self.stamp_note}" if self.stamp_note else "")
+
+    def lookup(self, stamp_ns: int, max_age_s: float, now: float | None = None) -> tuple[Transform | None, str]:
+        """The pose at ``stamp_ns`` (module docstring) or (None, the reason; with why poses were
+        set aside or the buffer started over, if that happened in the last :data:`NOTE_FRESH_S`)."""
         max_age = int(max_age_s * 1e9)
         with self._lock:
+            fresh = (time.monotonic() if now is None else now) - self._note_at <= NOTE_FRESH_S
+            note = f"; {self.stamp_note}" if self.stamp_note and fresh else ""
             if not self._stamps:
-                return None, f"{NO_POSE} (none received yet)"
+                kept = f"none kept of {self.received} received" if self.received else "none received yet"
+                return None, f"{NO_POSE} ({kept}{note})"
             k = bisect.bisect_left(self._stamps, stamp_ns)
             if k < len(self._stamps) and self._stamps[k] == stamp_ns:
                 return self._poses[k], ""
@@ -138,12 +230,16 @@ class PoseBuffer:
         if before and after and stamp_ns - before[0] <= max_age and after[0] - stamp_ns <= max_age:
             s = (stamp_ns - before[0]) / (after[0] - before[0])
             return interpolate(before[1], after[1], s), ""
-        near = [(abs(stamp_ns - x[0]), x[1]) for x in (before, after) if x is not None]
-        gap, pose = min(near, key=lambda x: x[0])
+        near = [(abs(stamp_ns - x[0]), x[0], x[1]) for x in (before, after) if x is not None]
+        gap, at, pose = min(near, key=lambda x: x[0])
         if gap <= max_age:
             return pose, ""
+        if gap > self.tolerance_ns and not note:
+            note = (f"; robot poses stamped {gap * 1e-9:.0f} s after the frame: clock step or wrong stamps"
+                    if at > stamp_ns else f"; the newest robot pose is stamped {gap * 1e-9:.0f} s before the frame: "
+                    "the poses stopped arriving, or a clock step or wrong stamps")
         return None, (f"{NO_POSE} (nearest sample {gap * 1e-9:.3f} s from the image stamp; "
-                      f"pose_max_age {max_age_s:g} s)")
+                      f"pose_max_age {max_age_s:g} s{note})")
 
     def motion_between(self, t0_ns: int, t1_ns: int, max_age_s: float) -> tuple[float, float] | None:
         """Largest change (mm, deg) of the robot pose over [t0, t1] relative to the pose at t1

@@ -36,7 +36,7 @@ def calibration_file_path(camera_name: str, output_dir: str = "", calibration_fi
     if calibration_file:
         return Path(calibration_file).expanduser()
     if output_dir:
-        return Path(output_dir) / f"{camera_name}.yaml"
+        return Path(output_dir).expanduser() / f"{camera_name}.yaml"
     return Path.home() / ".ros" / "camera_info" / f"{camera_name}.yaml"
 
 

@@ -28,3 +28,34 @@ def test_bad_files(tmp_path: Path) -> None:
         read_camera_yaml(p)
     with pytest.raises(CameraYamlError):
         read_camera_yaml(tmp_path / "missing.yaml")
+
+
+@pytest.mark.parametrize(("field", "value", "said"), [
+    ("image_width", None, "image_width must be a positive whole number of pixels, got None"),
+    ("image_height", "480", "image_height must be a positive whole number"),
+    ("image_width", -640, "image_width must be a positive whole number"),
+    ("image_width", ..., "missing image_width"),
+    ("distortion_model", None, "distortion_model must be a string, got None"),
+    ("camera_matrix", None, "missing camera_matrix"),
+    ("camera_matrix", {"rows": 3, "cols": 3, "data": [None] * 9}, "camera_matrix: data must be a list of finite"),
+    ("distortion_coefficients", {"rows": 1, "cols": None, "data": [0.0] * 5}, "distortion_coefficients: data and"),
+    ("projection_matrix", 7, "projection_matrix: not a matrix"),
+])
+def test_null_or_malformed_fields_are_named(tmp_path: Path, field: str, value: object, said: str) -> None:
+    """A null, missing or mistyped field is a CameraYamlError naming it (never a TypeError), and
+    reading the file by its content says the same (CalibrationFileError, a PascalCalibError)."""
+    from pascal_calib_ros.errors import PascalCalibError
+    from pascal_calib_ros.io.calibration_files import read_calibration_file
+
+    p = write_camera_yaml(tmp_path / "c.yaml", CameraInfoData(640, 480, "cam", np.diag([500.0, 500.0, 1.0]),
+                                                              np.zeros(5)))
+    doc = yaml.safe_load(p.read_text())
+    if value is ...:
+        del doc[field]
+    else:
+        doc[field] = value
+    p.write_text(yaml.safe_dump(doc))
+    with pytest.raises(CameraYamlError, match=f"c.yaml: {said}"):
+        read_camera_yaml(p)
+    with pytest.raises(PascalCalibError, match=said):
+        read_calibration_file(p)

@@ -90,10 +90,14 @@ def workspace(tmp_path_factory: pytest.TempPathFactory) -> Workspace:
 
 def test_colcon_build_installs_the_executables_and_data(workspace: Workspace) -> None:
     prefix = workspace.prefix
-    for exe in ("calibration_node", "replay_node", "pascal-calib"):
+    for exe in ("calibration_node", "replay_node", "publisher", "pascal-calib"):
         assert (prefix / "lib" / PKG / exe).exists(), exe
     share = prefix / "share" / PKG
     assert (share / "package.xml").exists() and (share / "config" / "calibration_node.yaml").exists()
+    for launch in ("calibrate.launch.py", "publish.launch.py"):  # ros2 launch pascal_calib_ros <launch>
+        assert (share / "launch" / launch).is_file(), launch
+    # the message packages tools/build_msg_package.py builds for the PyPI venv are not a workspace's packages
+    assert not (workspace.root / "install" / "tf2_msgs").exists()
     assert (share / "config" / "targets" / "ring_a4.yaml").exists()
     assert (prefix / "share" / "ament_index" / "resource_index" / "packages" / PKG).exists()
 

@@ -52,7 +52,8 @@ def _running_interfaces(params: dict, tmp_path) -> set[str]:
 
 
 def _table(interfaces) -> set[str]:
-    return {("/pascal_calib/" + i.name[2:]) if i.name.startswith("~/") else "/" + i.name for i in interfaces}
+    return {("/pascal_calib/" + i.name[2:]) if i.name.startswith("~/") else i.name if i.name.startswith("/")
+            else "/" + i.name for i in interfaces}
 
 
 @pytest.mark.ros

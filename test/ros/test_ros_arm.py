@@ -22,6 +22,7 @@ from ros_harness import (
     next_domain_id,
     require_netns,
     status_subscription,
+    tf_static_echo,
 )
 
 from pascal_calib_ros.cli import main as cli_main
@@ -140,6 +141,14 @@ def test_arm_session_capture_and_hand_eye(tmp_path: Path, arm_bag: tuple[Path, o
         doc = yaml.safe_load((tmp_path / "hand_eye.yaml").read_text())
         assert doc["mode"] == "eye_in_hand" and doc["parent_frame"] == "tool0" and doc["target_frame"] == "base_link"
         np.testing.assert_allclose(doc["translation"], [t.x, t.y, t.z], atol=1e-9)
+        # /tf_static: a tf2 listener started after the broadcast, in its own process, gets the same transform
+        tf = tf_static_echo(dom, ["camera_optical_frame"])
+        assert tf["rc"] == 0, tf["output"] + cal.log()
+        sent = tf["by_child"]["camera_optical_frame"]
+        assert sent["parent"] == "tool0" and len(tf["transforms"]) == 1, tf
+        np.testing.assert_allclose(sent["translation"], doc["translation"], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(sent["rotation"], doc["rotation"], rtol=0, atol=1e-9)
+        assert latest_status(status).get("tf_static") == "tool0 -> camera_optical_frame", latest_status(status)
         assert (tmp_path / "cam.yaml").exists()
         assert rep.wait(30) == 0
         assert f"{ARM_VIEWS * 5} message(s) on /image" in rep.log() and " pose(s) on /tool_pose" in rep.log()

@@ -14,7 +14,15 @@ from typing import Any
 
 import numpy as np
 import pytest
-from ros_harness import NodeProcess, RosClient, latest_status, next_domain_id, require_netns, status_subscription
+from ros_harness import (
+    NodeProcess,
+    RosClient,
+    latest_status,
+    next_domain_id,
+    require_netns,
+    status_subscription,
+    tf_static_echo,
+)
 from scipy.spatial.transform import Rotation
 
 from pascal_calib_ros.cli import main as cli_main
@@ -118,6 +126,9 @@ def test_replayed_stereo_session_gives_the_cli_result_and_commits_to_each_driver
         infos = [_latched(client, CameraInfo, f"/pascal_calib/{side}/camera_info") for side in ("left", "right")]
         tf = _latched(client, TransformStamped, "/pascal_calib/stereo_transform")
         assert client.spin_until(lambda: bool(infos[0] and infos[1] and tf), 20), cal.log()
+        # /tf_static: a tf2 listener started after the broadcast, in its own process
+        echoed = tf_static_echo(dom, ["right_camera_optical_frame"])
+        assert echoed["rc"] == 0, echoed["output"] + cal.log()
         # ~/commit: each camera's CameraInfo to its own driver, both answers reported
         accept = [True]
         sent = [_driver(client, f"/head/{side}/set_camera_info", [True] if side == "left" else accept)
@@ -166,6 +177,11 @@ def test_replayed_stereo_session_gives_the_cli_result_and_commits_to_each_driver
     E = mine_st["rig"]
     assert _rotation_deg(R_msg, E.R.T) < 1e-6
     np.testing.assert_allclose([tr.x, tr.y, tr.z], -E.R.T @ E.translation, atol=1e-9)
+    # the same transform on /tf_static (and nothing else from this node)
+    sent = echoed["by_child"]["right_camera_optical_frame"]
+    assert sent["parent"] == "left_camera_optical_frame" and len(echoed["transforms"]) == 1, echoed
+    np.testing.assert_allclose(sent["translation"], [tr.x, tr.y, tr.z], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(sent["rotation"], [q.x, q.y, q.z, q.w], rtol=0, atol=1e-12)
     # and both against the rendered truth (a sanity check: the tight figures are the stereo workflow's tests)
     truth = session.extrinsic(1)
     assert _rotation_deg(E.R, truth.R) < 0.05 and 1000 * np.linalg.norm(E.translation - truth.translation) < 0.5

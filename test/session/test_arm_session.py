@@ -132,6 +132,83 @@ def test_pose_buffer_waits_for_the_pose_of_a_newer_image() -> None:
     assert buf.lookup(11 * S, 0.1)[0] is a
 
 
+def _frames_and_poses(buf: PoseBuffer, t0: float, n: int, pose: Transform, wall0: float = 1000.0) -> list:
+    """``n`` frames at 10 Hz from ``t0`` s, each after the pose stamped with it (a driver resting at
+    ``pose``), the wall clock advancing with the stamps; the lookups' results."""
+    out = []
+    for k in range(n):
+        t = int(t0 * S) + k * S // 10
+        buf.add(t, pose, now=wall0 + k * 0.1)
+        buf.note_frame(t, now=wall0 + k * 0.1)
+        out.append(buf.lookup(t, 0.1, now=wall0 + k * 0.1))
+    return out
+
+
+def test_a_pose_stamped_an_hour_ahead_is_set_aside_and_says_why() -> None:
+    """Issue 34: one pose stamped an hour ahead used to keep only itself (the 30 s horizon from
+    the newest stamp) and refuse every later frame. It is set aside now, with the reason."""
+    buf = PoseBuffer()
+    rest = Transform.from_rotvec([0.1, 0.2, 0.3], [0.4, 0.0, 0.5])
+    assert all(p is not None for p, _ in _frames_and_poses(buf, 100.0, 5, rest))
+    assert not buf.add(3700 * S, rest, now=1000.5)  # an hour ahead of the frames
+    assert buf.set_aside == 1 and "stamped 3600 s after the frame: clock step or wrong stamps" in buf.stamp_note
+    got = _frames_and_poses(buf, 100.5, 20, rest, wall0=1000.5)
+    assert all(p is not None for p, _ in got), got  # every later frame has its pose
+    # a frame far from every pose says why
+    pose, why = buf.lookup(50 * S, 0.1, now=1003.0)
+    assert pose is None and "robot poses stamped 3600 s after the frame" in why  # the fresh set-aside note
+    assert "1 set aside for their stamps" in buf.describe()
+    pose, why = buf.lookup(50 * S, 0.1, now=1100.0)  # later: the reason is the gap itself
+    assert pose is None and "robot poses stamped 50 s after the frame: clock step or wrong stamps" in why, why
+    # the frames' clock itself: poses behind the frames by more than the tolerance are set aside too
+    assert not buf.add(60 * S, rest, now=1003.0)
+    assert "stamped 42 s before the frame" in buf.stamp_note, buf.stamp_note
+    # the whole clock steps forward: the poses ahead wait aside, taken back by the first frame they fit
+    step = PoseBuffer()
+    _frames_and_poses(step, 100.0, 3, rest)
+    assert not step.add(3700 * S, rest, now=1000.3)
+    step.note_frame(3700 * S + S // 20, now=1000.35)
+    assert step.lookup(3700 * S + S // 20, 0.1)[0] is rest and len(step) == 1
+    # without frames yet, a pose ahead is kept; the next live pose is a jump back and starts over
+    fresh = PoseBuffer()
+    assert fresh.add(3700 * S, rest, now=0.0) and fresh.add(100 * S, rest, now=0.1)
+    assert fresh.restarts == 1 and len(fresh) == 1 and fresh.lookup(100 * S, 0.1)[0] is rest
+    # the pose stream stopped: the refusal says that the newest pose is old
+    none, why = fresh.lookup(130 * S, 0.1, now=1000.0)
+    assert none is None and "the newest robot pose is stamped 30 s before the frame" in why, why
+
+
+@pytest.mark.parametrize("back_s", [3600.0, 5.0])
+def test_a_clock_step_back_or_looped_bag_starts_the_buffer_over(back_s: float) -> None:
+    """Stamps going back (a clock step, a restarted driver, a bag looped three times): the buffer
+    starts over, says so, and every capture after it has its pose."""
+    buf = PoseBuffer()
+    a = Transform.from_rotvec([0, 0, 0.0], [0.0, 0.0, 0.5])
+    wall = 0.0
+    start = 4000.0
+    for loop in range(3):
+        got = _frames_and_poses(buf, start - (back_s if loop else 0.0), 30, a, wall0=wall)
+        wall += 3.0
+        assert all(p is not None for p, _ in got), (loop, got)
+    assert buf.restarts == 2 and "jumped back" in buf.stamp_note and "started over" in buf.stamp_note
+    assert "started over 2 time(s) on a backward jump" in buf.describe()
+    # small disorder (DDS, two callbacks) is not a jump
+    before = buf.restarts
+    buf.add(int((start - back_s + 2.0) * S), a, now=wall)
+    assert buf.restarts == before
+    # ~/reset: empty, no notes; the reason of a refusal says nothing was kept
+    buf.clear()
+    assert len(buf) == 0 and buf.set_aside == 0 and buf.restarts == 0 and buf.stamp_note == ""
+    none, why = buf.lookup(int(start * S), 0.1)
+    assert none is None and "none kept of" in why
+    assert "0 sample(s)" in buf.describe()
+    # a recorded bag read whole keeps every sample, in any order (jump_back_s=None)
+    whole = PoseBuffer(horizon_s=100.0, jump_back_s=None)
+    for t in (50, 10, 40, 20):
+        whole.add(t * S, a)
+    assert len(whole) == 4 and whole.restarts == 0
+
+
 def test_robot_motion_between_frames_refuses_them(frames: dict[str, Detection]) -> None:
     buf = PoseBuffer()
     rest = Transform.from_rotvec([0.1, 0.2, 0.3], [0.4, 0.0, 0.5])
