@@ -36,6 +36,9 @@ from ..geometry.conic import (
 # (fit_band_profiles): ring_grid_a4 at 800x600, mean fx error of 4 sessions -0.0051 % at 3.5,
 # -0.0027 % at 5, -0.0024 % with every profile; 5 keeps large rings (5 MP) at the step fit's cost
 BAND_REACH = 5.0
+# px: the smallest profile half-window of a curve near the image border (refine_edges_batch); the
+# step fit needs its two plateaus, about two blur widths either side of the edge
+MIN_HALF_WINDOW = 5.0
 
 
 @dataclass(frozen=True)
@@ -242,8 +245,12 @@ def refine_edges_batch(image: np.ndarray, conics: list[np.ndarray], half_windows
         return out
     C_all = np.array(conics, float)
     par, real = ellipses_from_conics(C_all)
-    hw_all = np.asarray(half_windows, float)
-    use = np.flatnonzero(real & _windows_inside(par, hw_all, img.shape))
+    # a curve near the image border is measured with the window the image leaves it (the sheet
+    # around an element may be cut by the border, the element is whole), down to MIN_HALF_WINDOW
+    asked = np.asarray(half_windows, float)
+    with np.errstate(invalid="ignore"):
+        hw_all = np.minimum(asked, _window_room(par, img.shape))
+        use = np.flatnonzero(real & (hw_all >= np.minimum(asked, MIN_HALF_WINDOW)))
     if len(use) == 0:
         return out
     n_u = np.clip(ellipse_perimeter(par[use, 2], par[use, 3]) / spacing, 12, 2000).astype(int)
@@ -295,14 +302,14 @@ def refine_edges_batch(image: np.ndarray, conics: list[np.ndarray], half_windows
     return out
 
 
-def _windows_inside(par: np.ndarray, half_windows: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
-    """Whether each ellipse (rows cx, cy, a, b, angle) with its profile half-window lies inside
-    the image, one pixel from its border: the ellipse's bounding box grown by the half-window."""
+def _window_room(par: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """The largest profile half-window of each ellipse (rows cx, cy, a, b, angle) that keeps its
+    profiles inside the image, one pixel from its border: the room around its bounding box."""
     h, w = shape[:2]
     cx, cy, a, b, ang = par.T
-    ext_x = np.sqrt((a * np.cos(ang)) ** 2 + (b * np.sin(ang)) ** 2) + half_windows
-    ext_y = np.sqrt((a * np.sin(ang)) ** 2 + (b * np.cos(ang)) ** 2) + half_windows
-    return (cx - ext_x >= 1) & (cy - ext_y >= 1) & (cx + ext_x <= w - 2) & (cy + ext_y <= h - 2)
+    ext_x = np.sqrt((a * np.cos(ang)) ** 2 + (b * np.sin(ang)) ** 2)
+    ext_y = np.sqrt((a * np.sin(ang)) ** 2 + (b * np.cos(ang)) ** 2)
+    return np.minimum.reduce([cx - ext_x - 1, cy - ext_y - 1, w - 2 - cx - ext_x, h - 2 - cy - ext_y])
 
 
 def _curve_normals(par: np.ndarray, C_all: np.ndarray, use: np.ndarray, n_u: np.ndarray

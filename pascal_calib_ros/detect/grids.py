@@ -33,6 +33,37 @@ class GridError(PascalCalibError):
     pass
 
 
+def concentric_fit(outer: Ellipse, hole: Ellipse) -> tuple[float, float]:
+    """How close an ellipse and its hole come to the image of two concentric circles of radii
+    R > r, whatever the view: (spread, ratio). For such circles C_out^-1 C_in has the eigenvalues
+    (1, 1, r^2 / R^2) up to scale in every view (a homography only conjugates it), while the
+    offset of the two ellipses' centres grows with perspective (a close, tilted ring: 0.15-0.25
+    of its size). ``spread``: relative difference of the two largest eigenvalues (0: concentric);
+    ``ratio``: sqrt(smallest / their mean), r / R. Computed on the conics in the outer ellipse's
+    frame, scaled to its size."""
+    s = math.sqrt(outer.a * outer.b)
+    o = _unit_conic(0.0, 0.0, outer.a / s, outer.b / s, outer.angle)
+    h = _unit_conic((hole.cx - outer.cx) / s, (hole.cy - outer.cy) / s, hole.a / s, hole.b / s, hole.angle)
+    try:
+        with np.errstate(all="ignore"):
+            w = np.sort(np.abs(np.linalg.eigvals(np.linalg.solve(o, h))))
+    except np.linalg.LinAlgError:
+        return math.inf, 0.0
+    pair = (w[1] + w[2]) / 2
+    if not np.all(np.isfinite(w)) or pair <= 0:
+        return math.inf, 0.0
+    return float((w[2] - w[1]) / pair), float(math.sqrt(w[0] / pair))
+
+
+def _unit_conic(cx: float, cy: float, a: float, b: float, angle: float) -> np.ndarray:
+    """The conic of an ellipse, scaled so that its value at the centre is -1."""
+    c, s = math.cos(angle), math.sin(angle)
+    ia, ib = 1 / (a * a), 1 / (b * b)
+    p, q, r = c * c * ia + s * s * ib, c * s * (ia - ib), s * s * ia + c * c * ib
+    u, v = -(p * cx + q * cy), -(q * cx + r * cy)
+    return np.array([[p, q, u], [q, r, v], [u, v, -(u * cx + v * cy) - 1]])
+
+
 def _element_candidates(blobs: list, grid: CircleGrid) -> list[tuple[Ellipse, Ellipse | None, bool]]:
     """(outer ellipse, inner ellipse or None, touches border) for each blob that can be an element."""
     out = []
