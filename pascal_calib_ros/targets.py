@@ -2,7 +2,9 @@
 
 Frame: origin at the sheet's top-left corner, x to the right, y down, z into the sheet; metres.
 A target is a flat sheet carrying features: ``ring`` (black annulus, two concentric circles),
-``disc`` (black filled circle) and ``checkerboard``. See ``config/targets/*.yaml``.
+``disc`` (black filled circle), ``checkerboard``, grids of rings or discs, and the marker boards
+people own, ``charuco`` and ``aprilgrid`` (:mod:`.target_boards`). Kalibr's own target YAML is read
+as it is. See ``config/targets/*.yaml`` and docs/targets.md.
 """
 
 from __future__ import annotations
@@ -17,6 +19,15 @@ import numpy as np
 import yaml
 
 from .errors import PascalCalibError
+from .target_boards import (
+    AprilGrid,
+    BoardError,
+    CharucoBoard,
+    ModuleLattice,
+    from_kalibr_yaml,
+    parse_aprilgrid,
+    parse_charuco,
+)
 
 
 class TargetError(PascalCalibError):
@@ -68,6 +79,8 @@ class Checkerboard:
     square_size: float
     first_square: str  # "black" | "white"
 
+    kind = "checkerboard"
+
     @property
     def inner_corners(self) -> tuple[int, int]:
         """Inner corners along x, y (OpenCV's pattern size)."""
@@ -85,6 +98,32 @@ class Checkerboard:
     def extent(self) -> tuple[float, float, float, float]:
         x0, y0 = self.origin
         return (x0, y0, x0 + self.squares[0] * self.square_size, y0 + self.squares[1] * self.square_size)
+
+    @property
+    def corner_clearance(self) -> float:
+        """Radius (m) about an inner corner that holds only its own two edges."""
+        return self.square_size
+
+    @property
+    def corner_spacing(self) -> float:
+        return self.square_size
+
+    @property
+    def module_size(self) -> float:
+        """The smallest printed element the detector must resolve (m): a square."""
+        return self.square_size
+
+    def lattices(self) -> tuple[ModuleLattice, ...]:
+        """The black squares."""
+        jj, ii = np.mgrid[0:self.squares[1], 0:self.squares[0]]
+        black = ((ii + jj) % 2 == 0) == (self.first_square == "black")
+        return (ModuleLattice(self.origin, self.square_size, 0.0, self.square_size, black[:, :, None, None]),)
+
+    def describe(self) -> str:
+        return f"checkerboard {self.squares[0]}x{self.squares[1]} squares of {1000 * self.square_size:g} mm"
+
+
+Board = Checkerboard | CharucoBoard | AprilGrid  # a board of corners, each with its own id (its row)
 
 
 @dataclass(frozen=True)
@@ -121,7 +160,7 @@ class CircleGrid:
         return (x0 - r, y0 - r, x0 + (self.cols - 1) * self.pitch + r, y0 + (self.rows - 1) * self.pitch + r)
 
 
-Feature = Ring | Disc | Checkerboard | CircleGrid
+Feature = Ring | Disc | Board | CircleGrid
 
 
 @dataclass(frozen=True)
@@ -130,7 +169,7 @@ class Target:
     sheet: tuple[float, float]
     rings: tuple[Ring, ...] = ()
     discs: tuple[Disc, ...] = ()
-    checkerboards: tuple[Checkerboard, ...] = ()
+    boards: tuple[Board, ...] = ()
     source: str = field(default="", compare=False)
     grids: tuple[CircleGrid, ...] = ()
 
@@ -161,17 +200,28 @@ class Target:
         return base + (row * g.cols + col) * g.circles_per_element
 
     @property
+    def board(self) -> Board | None:
+        """The board whose corners are measured (the first one)."""
+        return self.boards[0] if self.boards else None
+
+    @property
+    def checkerboards(self) -> tuple[Checkerboard, ...]:
+        """The plain checkerboards among the boards."""
+        return tuple(b for b in self.boards if isinstance(b, Checkerboard))
+
+    @property
     def checkerboard(self) -> Checkerboard | None:
-        return self.checkerboards[0] if self.checkerboards else None
+        """The board if it is a plain checkerboard (what OpenCV's chessboard finder looks for)."""
+        return self.board if isinstance(self.board, Checkerboard) else None
 
     @property
     def local_origin(self) -> tuple[float, float]:
         """The origin (sheet coordinates, m) of the frame the calibration poses the target in: the
-        first circle's centre, or the middle of the first checkerboard's corners."""
+        first circle's centre, or the middle of the board's corners."""
         if self.circles:
             return self.circles[0].center
-        if self.checkerboard is not None:
-            c = self.checkerboard.corner_points()
+        if self.board is not None:
+            c = self.board.corner_points()
             mid = (c.min(0) + c.max(0)) / 2
             return float(mid[0]), float(mid[1])
         return (0.0, 0.0)
@@ -184,7 +234,7 @@ class Target:
             return "ring"
         if len(self.discs) >= 2:
             return "huang"
-        if self.checkerboards:
+        if self.boards:
             return "zhang"
         raise TargetError(f"target {self.name!r} has no feature any method can use")
 
@@ -196,7 +246,7 @@ class Target:
             out += ["ring", "pt2", "pt1"]
         if len(self.rings) + len(self.discs) >= 2 or self.grids:
             out.append("huang")
-        if self.checkerboards:
+        if self.boards:
             out.append("zhang")
         return tuple(out)
 
@@ -235,6 +285,11 @@ def parse_target(data: Any, source: str = "<dict>") -> Target:
     """Build a validated :class:`Target` from parsed YAML."""
     if not isinstance(data, dict):
         raise TargetError(f"{source}: a target file is a mapping with name, sheet, features")
+    if "target_type" in data and "features" not in data:
+        try:
+            data = from_kalibr_yaml(data, source)
+        except BoardError as e:
+            raise TargetError(str(e)) from None
     name = str(_require(data, "name", source))
     sheet_d = _require(data, "sheet", source)
     if not isinstance(sheet_d, dict):
@@ -248,7 +303,7 @@ def parse_target(data: Any, source: str = "<dict>") -> Target:
         raise TargetError(f"{source}: features must be a non-empty list")
     rings: list[Ring] = []
     discs: list[Disc] = []
-    boards: list[Checkerboard] = []
+    boards: list[Board] = []
     grids: list[CircleGrid] = []
     for i, f in enumerate(feats):
         where = f"{source}: features[{i}]"
@@ -277,9 +332,16 @@ def parse_target(data: Any, source: str = "<dict>") -> Target:
             boards.append(Checkerboard((o[0], o[1]), (sq[0], sq[1]), size, first))
         elif kind in ("ring_grid", "disc_grid"):
             grids.append(_parse_grid(f, kind, where))
+        elif kind in ("charuco", "aprilgrid"):
+            o = _floats(_require(f, "origin", where), 2, f"{where}.origin")
+            try:
+                parse = parse_charuco if kind == "charuco" else parse_aprilgrid
+                boards.append(parse(f, (o[0], o[1]), where))
+            except BoardError as e:
+                raise TargetError(str(e)) from None
         else:
             raise TargetError(f"{where}: unknown feature type {kind!r} "
-                              "(ring, disc, checkerboard, ring_grid, disc_grid)")
+                              "(ring, disc, checkerboard, ring_grid, disc_grid, charuco, aprilgrid)")
     target = Target(name, sheet, tuple(rings), tuple(discs), tuple(boards), source, tuple(grids))
     _check_layout(target)
     return target
@@ -326,8 +388,8 @@ def _check_layout(t: Target) -> None:
     for d in t.discs:
         x, y = d.center
         shapes.append(("disc", (x - d.radius, y - d.radius, x + d.radius, y + d.radius)))
-    for b in t.checkerboards:
-        shapes.append(("checkerboard", b.extent))
+    for b in t.boards:
+        shapes.append((b.kind, b.extent))
     for g in t.grids:
         shapes.append((f"{g.kind}_grid", g.extent))
     for name, (x0, y0, x1, y1) in shapes:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -93,3 +94,17 @@ def fisheye_grid_session() -> tuple[Camera, list[np.ndarray], list[Detection]]:
     """8 views of the ring grid through a fisheye of about 230 degrees diagonal (equidistant,
     f = 190 px at 640x480); some rings lie beyond 90 degrees from the axis."""
     return _session(resolve_target("ring_grid_a4"), FISHEYE_SPEC)
+
+
+@pytest.fixture(scope="session")
+def charuco_session() -> tuple[Camera, list[np.ndarray], list[Detection]]:
+    """8 whole and 5 partial views (the board hanging out of the frame) of charuco_a3, k1 = -0.2, 800x600."""
+    return _session(resolve_target("charuco_a3"), SessionSpec(width=800, height=600, views=8, partial_views=5,
+                                                              k1=-0.2, seed=4, size_range=(0.5, 0.8)))
+
+
+@pytest.fixture(scope="session")
+def aprilgrid_fisheye_session() -> tuple[Camera, list[np.ndarray], list[Detection]]:
+    """8 whole and 4 partial views of aprilgrid_a3 through the fisheye of ``fisheye_grid_session``."""
+    spec = replace(FISHEYE_SPEC, views=8, partial_views=4, size_range=(0.45, 0.7), focal=230, seed=5)
+    return _session(resolve_target("aprilgrid_a3"), spec)

@@ -124,7 +124,7 @@ def cut_board(target: Target) -> Target:
     trimmed = _TrimmedBoard(b.origin, b.squares, b.square_size, b.first_square, keep=CUT_TO)
     _, _, x1, y1 = trimmed.extent
     margin = MARGIN_TO * b.square_size
-    return replace(target, sheet=(x1 + margin, y1 + margin), checkerboards=(trimmed,))
+    return replace(target, sheet=(x1 + margin, y1 + margin), boards=(trimmed,))
 
 
 def truth(target: Target, view: RenderedView) -> np.ndarray:

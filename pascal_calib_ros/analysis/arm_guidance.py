@@ -50,6 +50,7 @@ from .candidates import (
     candidate_placements,
     default_feasibility,
     feasibility_problems_of,
+    partial_placements,
     place_arrays,
     placement_of,
     transforms,
@@ -140,7 +141,7 @@ class ArmModel:
 
 def _local_y(target: Target, Y_yaml: Transform) -> Transform:
     """Y of the refinement's local frame (origin at the first circle's centre)."""
-    o = np.array(target.circles[0].center if target.circles else (0.0, 0.0))
+    o = np.array(target.local_origin)
     return Y_yaml @ Transform.from_rt(np.eye(3), np.r_[o, 0.0])
 
 
@@ -292,7 +293,8 @@ def arm_candidates(model: ArmModel, target: Target, trust: TrustRegion, grid: Ca
     placements and placements near the visited views (:func:`local_placements`)."""
     cam = model.predictor.camera_sized
     rules = rules or default_feasibility(target, cam.width)
-    placements = candidate_placements(cam, grid, target) + local_placements(model, target, trust)
+    placements = candidate_placements(cam, grid, target) + partial_placements(cam, target) \
+        + local_placements(model, target, trust)
     ok = with_ray(cam, placements)
     R, t = place_arrays(target, cam, ok)
     # the trust region first (one batch of tool poses), then the feasibility rules on what is left

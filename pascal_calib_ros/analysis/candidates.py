@@ -33,12 +33,16 @@ from ..targets import Target
 # the largest tilt against the line of sight at which the detector still finds the target in
 # most views (measured with `pascal-calib study guided --tilt-limits`, 800x600, blur 1 px)
 MAX_TILT_DEG = {"ring": 70.0, "grid": 60.0, "checkerboard": 55.0}
+PARTIAL_MIN_SHARE = 0.3  # a marker board's candidate keeps at least this share of its corners in the image
+# ... and its markers' bits at least this many px wide where they are smallest: aruco then reads 85-95 %
+# of the markers at 25-45 degrees of tilt (charuco_a3 and aprilgrid_a3 renders at 800x600, blur 1 px)
+MIN_MODULE_PX = 3.2
 
 
 def max_tilt_deg(target: Target) -> float:
     """The detector's tilt limit for this target: the strictest of its feature kinds."""
     kinds = (["grid"] if target.grids else []) + (["ring"] if target.rings or target.discs else []) \
-        + (["checkerboard"] if target.checkerboards else [])
+        + (["checkerboard"] if target.boards else [])
     return min(MAX_TILT_DEG[k] for k in kinds) if kinds else MAX_TILT_DEG["ring"]
 
 
@@ -53,7 +57,7 @@ def outline_points(target: Target, n: int = 24) -> np.ndarray:
     for g in target.grids:
         for cx, cy in g.centers()[[0, g.cols - 1, -g.cols, -1]]:
             pts.append(np.stack([cx + g.outer_radius * np.cos(a), cy + g.outer_radius * np.sin(a)], 1))
-    for b in target.checkerboards:
+    for b in target.boards:
         x0, y0, x1, y1 = b.extent
         pts.append(np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]]))
     return np.concatenate(pts) if pts else np.zeros((0, 2))
@@ -179,7 +183,8 @@ def default_feasibility(target: Target, width: int, distances: np.ndarray | None
     if distances is not None and len(distances):
         lo, hi = 0.6 * float(np.min(distances)), 1.5 * float(np.max(distances))
     return Feasibility(margin_px=max(10.0, 0.02 * width), max_tilt_deg=max_tilt_deg(target), min_distance=lo,
-                       max_distance=hi, min_radius_px=4.0 if target.grids else 8.0)
+                       max_distance=hi, min_radius_px=4.0 if target.grids else 8.0,
+                       min_square_px=MIN_MODULE_PX if partial_views_count(target) else 7.0)
 
 
 def line_of_sight_tilt_deg(target: Target, pose: Transform) -> float:
@@ -194,6 +199,12 @@ def line_of_sight_tilt_deg(target: Target, pose: Transform) -> float:
 def _in_image(camera: Camera, X: np.ndarray, margin: float) -> np.ndarray:
     """Per pose (C,) whether every point of X (C, P, 3) images inside the image with ``margin``
     px to spare, on a consistent ray (the lens model does not fold there)."""
+    return np.all(points_in_image(camera, X, margin), axis=1)
+
+
+def points_in_image(camera: Camera, X: np.ndarray, margin: float) -> np.ndarray:
+    """(C, P): which points of X (C, P, 3) image inside the image with ``margin`` px to spare, on a
+    consistent ray."""
     C, P, _ = X.shape
     flat = X.reshape(-1, 3)
     ok = np.ones(len(flat), bool) if camera.lens.wide else flat[:, 2] > 1e-6
@@ -206,7 +217,13 @@ def _in_image(camera: Camera, X: np.ndarray, margin: float) -> np.ndarray:
     good = fin & np.all(np.isfinite(back), 1) & (np.max(np.abs(back - rays), axis=1) <= 1e-6)
     good &= (uv[:, 0] >= margin) & (uv[:, 0] <= camera.width - 1 - margin)
     good &= (uv[:, 1] >= margin) & (uv[:, 1] <= camera.height - 1 - margin)
-    return np.all(good.reshape(C, P), axis=1)
+    return good.reshape(C, P)
+
+
+def partial_views_count(target: Target) -> bool:
+    """Whether a view of ``target`` counts with part of it out of the frame: a marker board alone
+    (its corners carry their ids; :mod:`..detect.marker_boards`)."""
+    return target.board is not None and target.board.kind != "checkerboard" and not target.circles
 
 
 def smallest_circles(target: Target) -> tuple[np.ndarray, np.ndarray]:
@@ -241,15 +258,15 @@ def smallest_feature_px(target: Target, camera: Camera, R: np.ndarray, t: np.nda
         q = _project_poses(camera, R, t, P).reshape(C, len(ctr), len(a), 2)
         circ = np.min(np.linalg.norm(q - q.mean(2, keepdims=True), axis=3), axis=(1, 2))
     sq = np.full(C, np.inf)
-    for b in target.checkerboards:
+    for b in target.boards:  # a marker board's bits: scaled from its squares (tags) imaged
         x0, y0, x1, y1 = b.extent
-        s = b.square_size
+        s = b.corner_spacing
         corners = np.array([[x0, y0], [x1 - s, y0], [x0, y1 - s], [x1 - s, y1 - s]])  # the four corner squares
         P = np.concatenate([np.c_[corners, np.zeros(4)], np.c_[corners + np.array([s, 0.0]), np.zeros(4)],
                             np.c_[corners + np.array([0.0, s]), np.zeros(4)]])
         q = _project_poses(camera, R, t, P).reshape(C, 3, 4, 2)
         sides = np.minimum(np.linalg.norm(q[:, 1] - q[:, 0], axis=2), np.linalg.norm(q[:, 2] - q[:, 0], axis=2))
-        sq = np.minimum(sq, sides.min(1))
+        sq = np.minimum(sq, sides.min(1) * b.module_size / s)
     return circ, sq
 
 
@@ -276,9 +293,15 @@ def feasibility_problems_of(target: Target, camera: Camera, R: np.ndarray, t: np
     """:func:`feasibility_problems` of poses given as rotation matrices (C, 3, 3) and translations (C, 3)."""
     if not len(R):
         return []
-    pts = outline_points(target)
-    X = np.einsum("cij,nj->cni", R, np.c_[pts, np.zeros(len(pts))]) + t[:, None, :]
-    inside = _in_image(camera, X, rules.margin_px)
+    if partial_views_count(target):  # enough of the board's corners in view
+        assert target.board is not None
+        pts = target.board.corner_points()
+        X = np.einsum("cij,nj->cni", R, np.c_[pts, np.zeros(len(pts))]) + t[:, None, :]
+        inside = points_in_image(camera, X, rules.margin_px).mean(axis=1) >= PARTIAL_MIN_SHARE
+    else:
+        pts = outline_points(target)
+        X = np.einsum("cij,nj->cni", R, np.c_[pts, np.zeros(len(pts))]) + t[:, None, :]
+        inside = _in_image(camera, X, rules.margin_px)
     c = feature_centre(target)
     centre = R @ np.r_[c, 0.0] + t
     dist = np.linalg.norm(centre, axis=1)
@@ -288,7 +311,9 @@ def feasibility_problems_of(target: Target, camera: Camera, R: np.ndarray, t: np
     out = []
     for k in range(len(R)):
         if not inside[k]:
-            out.append(f"the target leaves the image (margin {rules.margin_px:g} px)")
+            out.append(f"less than {PARTIAL_MIN_SHARE:.0%} of the board's corners in the image (margin "
+                       f"{rules.margin_px:g} px)" if partial_views_count(target)
+                       else f"the target leaves the image (margin {rules.margin_px:g} px)")
         elif tilt[k] > rules.max_tilt_deg:
             out.append(f"tilted {tilt[k]:.0f} deg against the line of sight (the detector handles "
                        f"{rules.max_tilt_deg:g})")
@@ -297,7 +322,8 @@ def feasibility_problems_of(target: Target, camera: Camera, R: np.ndarray, t: np
         elif not circ[k] >= rules.min_radius_px:
             out.append(f"circles too small ({circ[k]:.1f} px semi-minor axis, need {rules.min_radius_px:g})")
         elif not sq[k] >= rules.min_square_px:
-            out.append(f"checkerboard squares too small ({sq[k]:.1f} px, need {rules.min_square_px:g})")
+            what = "checkerboard squares" if target.checkerboard is not None else "the markers' bits"
+            out.append(f"{what} too small ({sq[k]:.1f} px, need {rules.min_square_px:g})")
         else:
             out.append("")
     return out
@@ -359,12 +385,40 @@ def feasible_candidates(target: Target, camera: Camera, placements: list[Placeme
     return [(p, pose) for p, pose, why in zip(ok, poses, problems, strict=True) if not why]
 
 
+def partial_placements(camera: Camera, target: Target) -> list[Placement]:
+    """For a marker board (:func:`partial_views_count`): the board's centre on the image's corners
+    and the middles of its sides, large (60 and 80 % of the width), head-on and tilted 25 degrees
+    about four axes: views that reach the image's corners with part of the board out of the frame,
+    where a whole board cannot go and where the lens model is decided."""
+    if not partial_views_count(target):
+        return []
+    w, h = camera.width, camera.height
+    out = []
+    for (u, v), size in itertools.product([(a * w, b * h) for a in (0.0, 0.5, 1.0) for b in (0.0, 0.5, 1.0)
+                                           if (a, b) != (0.5, 0.5)], (0.6, 0.8)):
+        d = distance_for_size(target, camera, size)
+        out.append(Placement((float(u), float(v)), d, 0.0, 0.0, 0.0))
+        out += [Placement((float(u), float(v)), d, 25.0, 90.0 * k, 0.0) for k in range(4)]
+    return out
+
+
+def _distance_for_bits(target: Target, camera: Camera, tilt_deg: float) -> float:
+    """The distance at which the target's smallest bits image ``MIN_MODULE_PX`` + 25 % at this tilt
+    (head-on at the image centre, the far side of the board foreshortened by about cos(tilt))."""
+    assert target.board is not None
+    far = feature_extent(target) / 2 * np.sin(np.radians(tilt_deg))
+    return float(camera.K[0, 0] * target.board.module_size * np.cos(np.radians(tilt_deg))
+                 / (1.25 * MIN_MODULE_PX)) - far
+
+
 def bootstrap_placements(camera: Camera, target: Target) -> list[Placement]:
     """Three fixed views to start from, before any covariance exists: near the middle, at about
     45 % of the width, tilted 35 degrees about three different axes (the closed forms need tilted
     views; Zhang's method needs the planes' normals to differ)."""
     w, h = camera.width, camera.height
     d = distance_for_size(target, camera, 0.45)
+    if partial_views_count(target):  # as near as the markers' bits need (they may leave the frame)
+        d = min(d, _distance_for_bits(target, camera, 35.0))
     return [Placement((0.5 * w, 0.5 * h), d, 35.0, 0.0, 0.0),
             Placement((0.4 * w, 0.45 * h), d, 35.0, 90.0, 10.0),
             Placement((0.6 * w, 0.55 * h), d, 35.0, 225.0, -10.0)]

@@ -162,7 +162,7 @@ def _hints(opt: CalibrationOptions, target: Target) -> tuple[str, ...]:
     richer = RICHER_MODEL.get(opt.distortion)
     hints = [f"the lens model ({opt.distortion}) may be too simple for this lens (try --distortion {richer}; "
              "node: distortion_model)" if richer else f"the lens model ({opt.distortion}) may not describe this lens"]
-    if not opt.target_shape and (target.grids or target.checkerboards):
+    if not opt.target_shape and (target.grids or target.boards):
         hints.append("the target may not be flat (try --target-shape; node: target_shape)")
     else:
         hints.append("the target may not be flat or its print not true to scale")

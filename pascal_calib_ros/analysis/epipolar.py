@@ -56,8 +56,8 @@ def epipolar_samples(rig: RigResult, rect: StereoRectification, dets: list[list[
     cams = [rig.cameras[left].camera(), rig.cameras[right].camera()]
     Rs, Ps = (rect.R1, rect.R2), (rect.P1, rect.P2)
     swap = np.array([[0.0, 1.0], [1.0, 0.0]]) if rect.vertical else np.eye(2)
-    origin = np.asarray(target.circles[0].center if target.circles else (0.0, 0.0), float)
-    board = target.checkerboard
+    origin = np.asarray(target.local_origin, float)
+    board = target.board
     out: list[np.ndarray] = []
     where: list[np.ndarray] = []
     for s in np.flatnonzero(rig.used[left] & rig.used[right]):

@@ -81,8 +81,8 @@ def fit_fresh_views(dets: list[Detection], target: Target, cam: Camera,
     if sizes and sizes != {(cam.width, cam.height)}:
         raise VerifyError(f"the views are {', '.join(f'{w}x{h}' for w, h in sorted(sizes))}, the calibration "
                           f"{cam.width}x{cam.height}: verify needs views of the calibrated camera mode")
-    origin = target.circles[0].center if target.circles else (0.0, 0.0)
-    dof = 6 if (len({c.center for c in target.circles}) > 1 or target.checkerboards) else 5
+    origin = target.local_origin
+    dof = 6 if (len({c.center for c in target.circles}) > 1 or target.boards) else 5
     reports = [(d.name or f"view{k}", d.ok, d.reason) for k, d in enumerate(dets)]
     views, poses, used = [], [], []
     for k, d in enumerate(dets):

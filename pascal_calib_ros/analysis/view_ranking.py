@@ -28,6 +28,7 @@ from .candidates import (
     default_feasibility,
     feasible_candidates,
     feature_centre,
+    partial_placements,
     placement_of,
 )
 from .guidance import Linearisation, Prediction, ViewPredictor
@@ -51,13 +52,13 @@ class RankedView:
 
 def local_pose(target: Target, pose: Transform) -> tuple[np.ndarray, np.ndarray]:
     """(R, t) of the refinement's local frame (origin at the first circle's centre) -> camera."""
-    o = np.array(target.circles[0].center if target.circles else (0.0, 0.0))
+    o = np.array(target.local_origin)
     return pose.R, pose.translation + pose.R @ np.r_[o, 0.0]
 
 
 def yaml_pose(target: Target, R: np.ndarray, t: np.ndarray) -> Transform:
     """camera_T_target (YAML frame) of a local-frame pose (R, t)."""
-    o = np.array(target.circles[0].center if target.circles else (0.0, 0.0))
+    o = np.array(target.local_origin)
     return Transform.from_rt(R, t - R @ np.r_[o, 0.0])
 
 
@@ -152,7 +153,7 @@ def view_distances(target: Target, res: RefineResult) -> np.ndarray:
     """Distances (m) of the views' feature centres from the camera."""
     assert res.x is not None and res.problem is not None and res.intr0 is not None
     R, t = res.view_poses_of(res.x)
-    o = np.array(target.circles[0].center if target.circles else (0.0, 0.0))
+    o = np.array(target.local_origin)
     c = np.r_[feature_centre(target) - o, 0.0]
     return np.linalg.norm(R @ c + t, axis=1)
 
@@ -200,7 +201,8 @@ def suggest_views(res: RefineResult, target: Target, width: int, height: int, n:
     """The ``n`` best next views for a person holding the target (module docstring)."""
     pred = ViewPredictor(Linearisation.of_refinement(res), width, height)
     rules = rules or default_feasibility(target, width, view_distances(target, res))
-    cands = feasible_candidates(target, pred.camera_sized, candidate_placements(pred.camera_sized, grid, target), rules)
+    placements = candidate_placements(pred.camera_sized, grid, target) + partial_placements(pred.camera_sized, target)
+    cands = feasible_candidates(target, pred.camera_sized, placements, rules)
     assert res.x is not None
     R, t = res.view_poses_of(res.x)
     cands = unseen(cands, captured_placements(target, pred.camera_sized, R, t), width, height)

@@ -104,7 +104,7 @@ def synthesise_views(target: Target, camera: Camera, R: np.ndarray, t: np.ndarra
     """:func:`synthesise_view` of many poses (R (V, 3, 3), t (V, 3)) at once: one projection of
     every view's circles, one interpolation of every view's edge points."""
     V = len(R)
-    origin = np.array(target.circles[0].center if target.circles else (0.0, 0.0))
+    origin = np.array(target.local_origin)
     circles = target.circles
     sub = circle_subset(target, max_elements)
     C = len(sub)
@@ -145,11 +145,14 @@ def synthesise_views(target: Target, camera: Camera, R: np.ndarray, t: np.ndarra
             c = kc[sl]
             views[v] = ViewData(pix[sl], centers[c], radii[c], np.where(dark[c], 1.0, -1.0), sub[c])
             weights[v] = wk[sl]
-    board = target.checkerboard
+    board = target.board
     if board is not None and options.use_corners:
         obj = board.corner_points() - origin
         pix = project(np.tile(obj, (V, 1)), np.repeat(np.arange(V), len(obj))).reshape(V, len(obj), 2)
+        # a marker board's partial view measures the corners in the image only (a whole board's are all in)
+        seen = np.all(np.isfinite(pix), 2) & (pix[..., 0] >= 0) & (pix[..., 0] <= camera.width - 1) \
+            & (pix[..., 1] >= 0) & (pix[..., 1] <= camera.height - 1)
         for v in range(V):
-            views[v].corners, views[v].corner_obj = pix[v], obj
-            weights[v] = np.concatenate([weights[v], np.ones(2 * len(obj))])
+            views[v].corners, views[v].corner_obj = pix[v][seen[v]], obj[seen[v]]
+            weights[v] = np.concatenate([weights[v], np.ones(2 * int(seen[v].sum()))])
     return [SyntheticView(vd, w) for vd, w in zip(views, weights, strict=True)]

@@ -219,11 +219,11 @@ def _in_plane_rotation(det: Detection, target: Target, K: np.ndarray, R: np.ndar
             continue
         obs.append(ctr)
         ref.append(np.array(circ.center) - np.array(ref_centre))
-    if det.corners is not None and target.checkerboard is not None:
+    if det.corners is not None and target.board is not None:
         Hi = np.linalg.inv(H)
         q = np.concatenate([det.corners, np.ones((len(det.corners), 1))], 1) @ Hi.T
         obs.extend(q[:, :2] / q[:, 2:3])
-        ref.extend(target.checkerboard.corner_points() - np.array(ref_centre))
+        ref.extend(target.board.corner_points() - np.array(ref_centre))
     if not obs:
         return R
     ob, P = np.array(obs), np.array(ref)

@@ -56,10 +56,10 @@ def view_data(det: Detection, target: Target, origin: tuple[float, float], max_p
         ids.append(np.full(len(p), e.circle))
     vd = ViewData(np.concatenate(pts), np.concatenate(ctr), np.concatenate(rad), np.concatenate(sgn),
                   np.concatenate(ids))
-    if use_corners and det.corners is not None and target.checkerboard is not None:
+    if use_corners and det.corners is not None and target.board is not None:
         ok = np.all(np.isfinite(det.corners), 1)  # corners the detector's check rejected are NaN
         vd.corners = det.corners[ok]
-        vd.corner_obj = target.checkerboard.corner_points()[ok] - np.array(origin)
+        vd.corner_obj = target.board.corner_points()[ok] - np.array(origin)
     return vd
 
 

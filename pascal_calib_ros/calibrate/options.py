@@ -57,7 +57,7 @@ def _checked_options(options: CalibrationOptions, target: Target) -> Calibration
     unknown = [n for n in opt.target_shape if n not in SHAPE_NAMES]
     if unknown:
         raise CalibrationError(f"unknown target shape parameter(s) {unknown}; choose from {', '.join(SHAPE_NAMES)}")
-    if opt.target_shape and not (target.grids or target.checkerboards):
+    if opt.target_shape and not (target.grids or target.boards):
         raise CalibrationError(f"the shape of target {target.name!r} cannot be estimated: it needs features spread "
                                "over the sheet (a ring or disc grid, or a checkerboard)")
     if opt.target_shape and not opt.refine:

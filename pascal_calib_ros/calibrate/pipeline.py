@@ -94,7 +94,7 @@ def first_refinement(dets: list[Detection], target: Target, prep: Prepared) -> R
 def pose_dof(target: Target) -> int:
     """Parameters of a view's pose: 6, or 5 for a target with a single circle centre (its rotation
     about the ring's axis unobservable)."""
-    return 6 if (len({c.center for c in target.circles}) > 1 or target.checkerboards) else 5
+    return 6 if (len({c.center for c in target.circles}) > 1 or target.boards) else 5
 
 
 @dataclass
@@ -177,6 +177,9 @@ def _report_views(res: RefineResult, idx: list[int], dets: list[Detection], repo
         rep.rejected_edges, rep.rejected_corners = v.rejected_edges, v.rejected_corners
         c = dets[k].corners
         rep.unmeasured_corners = int(np.sum(~np.all(np.isfinite(c), 1))) if c is not None else 0
+        if dets[k].marker_ids is not None and c is not None:  # NaN rows: corners out of view, too
+            rep.unmeasured_corners = dets[k].corners_rejected
+            rep.board_corners = (int(np.all(np.isfinite(c), 1).sum()), len(c))
 
 
 def _drop_outlier_views(res: RefineResult, idx: list[int], reports: list[ViewReport], opt: CalibrationOptions,
@@ -245,8 +248,8 @@ def target_shape_frame(target: Target, origin: tuple[float, float]) -> tuple[flo
     """Frame of the warp (refine.shape_frame_of) over all circle centres and checkerboard corners
     of the target, in the refinement's local frame (origin: ``Target.local_origin``)."""
     pts = [np.array([c.center for c in target.circles]).reshape(-1, 2)]
-    if target.checkerboard is not None:
-        pts.append(target.checkerboard.corner_points())
+    if target.board is not None:
+        pts.append(target.board.corner_points())
     return shape_frame_of(np.concatenate(pts) - np.array(origin))
 
 
@@ -277,8 +280,8 @@ def _zhang(dets: list[Detection], target: Target, opt: CalibrationOptions, repor
         if dets[k].ok and not rep.used:
             rep.reason = "checkerboard not found"
     names = [n for n in intrinsic_names(DISTORTION_CHOICES[opt.distortion][0]) if n != "skew"]
-    assert target.checkerboard is not None
-    grid = np.c_[target.checkerboard.corner_points(), np.zeros(len(target.checkerboard.corner_points()))]
+    assert target.board is not None
+    grid = np.c_[target.board.corner_points(), np.zeros(len(target.board.corner_points()))]
     cam = Camera(z.K, z.D, w, h, DISTORTION_CHOICES[opt.distortion][0].name)
     corners, residuals = [], []
     for k, pose in zip(z.used, z.poses, strict=True):

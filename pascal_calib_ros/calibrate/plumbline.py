@@ -149,13 +149,16 @@ def equidistant_rays(p: np.ndarray, f: float, centre: np.ndarray) -> np.ndarray:
 
 
 def _corner_lines(det: Detection, target: Target) -> list[np.ndarray]:
-    """Rows and columns of the checkerboard's inner corners (target order: row-major)."""
-    board = target.checkerboard
+    """Rows and columns of the board's corners (target order: row-major), the measured corners of
+    each with at least three."""
+    board = target.board
     if det.corners is None or board is None:
         return []
     cols, rows = board.inner_corners
     grid = det.corners.reshape(rows, cols, 2)
-    return [grid[i] for i in range(rows)] + [grid[:, j] for j in range(cols)]
+    lines = [grid[i] for i in range(rows)] + [grid[:, j] for j in range(cols)]
+    lines = [ln[np.isfinite(ln[:, 0])] for ln in lines]
+    return [ln for ln in lines if len(ln) >= 3]
 
 
 def _ray_planarity(lines: _Lines, f: float, centre: np.ndarray) -> float:
@@ -239,7 +242,8 @@ def equidistant_focal(dets: list[Detection], target: Target) -> float:
 def virtual_pinhole_detections(dets: list[Detection], f: float) -> list[Detection]:
     """Copies of the detections drawn in the virtual pinhole camera of the equidistant guess:
     edge points beyond VIRTUAL_MAX_ANGLE dropped (an edge keeps at least half of its points or is
-    dropped), conics refitted; corners kept only if all of them are within the angle."""
+    dropped), conics refitted; a checkerboard's corners kept only if all of them are within the
+    angle, a marker board's with NaN for those beyond."""
     out = []
     for d in dets:
         centre = np.array([d.width / 2, d.height / 2])
@@ -258,6 +262,8 @@ def virtual_pinhole_detections(dets: list[Detection], f: float) -> list[Detectio
         corners = None
         if d.corners is not None:
             c = _virtual_pinhole(d.corners, f, centre)
-            corners = c if np.all(np.isfinite(c)) else None
+            seen = np.isfinite(d.corners[:, 0])
+            if np.all(np.isfinite(c[seen])) or d.marker_ids is not None:  # a marker board: NaN where beyond
+                corners = c
         out.append(replace(d, edges=edges, corners=corners))
     return out

@@ -30,6 +30,8 @@ class ViewReport:
     unmeasured_corners: int = 0
     rejected_edges: int = 0
     rejected_corners: int = 0
+    # a marker board's partial view: (corners measured, corners on the board); None for other targets
+    board_corners: tuple[int, int] | None = None
 
 
 @dataclass

@@ -136,7 +136,7 @@ def _checked(dets: list[list[Detection]], names: list[str], target: Target) -> N
         raise RigError(f"one distinct name per camera, got {names}")
     if len({len(d) for d in dets}) != 1:
         raise RigError("every camera needs one detection per shot (a rejected one where it has no image)")
-    if target.circles and len({c.center for c in target.circles}) == 1 and not target.checkerboards:
+    if target.circles and len({c.center for c in target.circles}) == 1 and not target.boards:
         raise RigError(f"target {target.name!r} is a single ring: its rotation about its own axis is seen in no "
                        "view, so a shot does not tie two cameras' frames together; use a grid or a board")
 
@@ -146,7 +146,7 @@ def label_moves(target: Target, origin: tuple[float, float]) -> LabelMoves:
     symmetries; for a target that is one grid and nothing else (whose views the detector labels up
     to a lattice move when it sees part of the grid), every lattice move."""
     syms = target_symmetries(target, origin)
-    lattice = len(target.grids) == 1 and not (target.rings or target.discs or target.checkerboards) \
+    lattice = len(target.grids) == 1 and not (target.rings or target.discs or target.boards) \
         and np.allclose(origin, target.grids[0].origin)
     return LabelMoves(syms, target.grids[0].pitch if lattice else 0.0)
 
@@ -275,7 +275,7 @@ def calibrate_rig(dets: list[list[Detection]], target: Target, names: list[str],
                     names)
     own = _own_calibrations(dets, target, opt, names)
     sizes = {(r.width, r.height) for r in own}
-    origin = target.circles[0].center if target.circles else (0.0, 0.0)
+    origin = target.local_origin
     views, posed, reasons = _posed_views(dets, own, target, replace(opt, max_points_per_view=options.points_per_view),
                                          origin)
     start = rig_start(posed, names, label_moves(target, origin), options.label_tolerance_deg,

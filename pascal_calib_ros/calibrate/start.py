@@ -52,9 +52,16 @@ class ClosedFormStart:
 def zhang_start(dets: list[Detection], usable: list[int], target: Target, opt: CalibrationOptions,
                 reports: list[ViewReport]) -> ClosedFormStart:
     """K, D and a pose per view from OpenCV's calibration of the checkerboard corners (Zhang's
-    closed form and OpenCV's own refinement): the start of the checkerboard path."""
+    closed form and OpenCV's own refinement): the start of the checkerboard path. A fisheye's corners
+    are drawn first in the virtual pinhole camera of a generic equidistant lens (as the circle
+    methods' are), and K alone is taken from them: OpenCV's fisheye calibration fails on rays near
+    or beyond 90 degrees and on views with different numbers of corners."""
+    init_dets, distortion = dets, opt.distortion
+    if DISTORTION_CHOICES[opt.distortion][0].wide:
+        init_dets = virtual_pinhole_detections(dets, equidistant_focal([dets[k] for k in usable], target))
+        distortion = "none"
     try:
-        z = calibrate_zhang([dets[k] for k in usable], target, opt.distortion, target.local_origin)
+        z = calibrate_zhang([init_dets[k] for k in usable], target, distortion, target.local_origin)
     except DegenerateViewsError as exc:
         raise CalibrationError(str(exc)) from None
     used = [usable[k] for k in z.used]
@@ -63,7 +70,8 @@ def zhang_start(dets: list[Detection], usable: list[int], target: Target, opt: C
             reports[k].used, reports[k].reason = False, "zhang: fewer than 6 measured corners"
     Ki = np.linalg.inv(z.K)
     sol = IacSolution(z.K, Ki.T @ Ki, float("nan"))
-    return ClosedFormStart(sol, used, dict(zip(used, z.poses, strict=True)), dets, 0.0, [], z.D)
+    D = None if distortion != opt.distortion else z.D
+    return ClosedFormStart(sol, used, dict(zip(used, z.poses, strict=True)), init_dets, 0.0, [], D)
 
 
 def closed_form_start(dets: list[Detection], usable: list[int], target: Target, opt: CalibrationOptions,

@@ -36,7 +36,7 @@ def calibrate_zhang(dets: list[Detection], target: Target, distortion: str = "pl
                     origin: tuple[float, float] = (0.0, 0.0)) -> ZhangResult:
     """OpenCV's calibration on the measured corners of every view (corners the detector rejected
     are NaN and left out); the poses are returned in the local frame x_local = x_target - origin."""
-    board = target.checkerboard
+    board = target.board
     if board is None:
         raise ValueError(f"target {target.name!r} has no checkerboard: zhang needs one")
     grid = board.corner_points()

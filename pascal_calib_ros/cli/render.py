@@ -28,6 +28,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--jpeg", type=int, default=0, help="JPEG quality (0: PNG)")
     r.add_argument("--seed", type=int, default=0)
     r.add_argument("--cut-views", type=int, default=0, help="extra views with the target cut by the frame")
+    r.add_argument("--partial-views", type=int, default=0,
+                   help="extra views with a marker board hanging partly out of the frame (ChArUco, AprilGrid)")
     r.add_argument("--empty-views", type=int, default=0, help="extra views without any target")
     r.add_argument("--defocused-views", type=int, default=0, help="extra strongly defocused views")
     r.add_argument("--min-size", type=float, default=0.3, help="smallest target extent, fraction of the width")
@@ -45,7 +47,8 @@ def run(args: argparse.Namespace) -> int:
     w, h = (int(v) for v in args.size.lower().split("x"))
     spec = SessionSpec(width=w, height=h, focal=args.focal, k1=args.k1, views=args.views, blur=args.blur,
                        gamma=args.gamma, noise=args.noise, jpeg=args.jpeg, seed=args.seed,
-                       cut_views=args.cut_views, empty_views=args.empty_views, defocused_views=args.defocused_views,
+                       cut_views=args.cut_views, partial_views=args.partial_views, empty_views=args.empty_views,
+                       defocused_views=args.defocused_views,
                        size_range=(args.min_size, args.max_size), pitch_ratio=args.pitch_ratio,
                        warp_x=args.warp_x / 1000, warp_y=args.warp_y / 1000, lens=args.lens,
                        dist=tuple(float(v) for v in args.dist.split(",")) if args.dist else (),

@@ -26,7 +26,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     e.set_defaults(func=cmd_experiment)
     s = sub.add_parser("study", help="accuracy studies against ground truth (see README)")
     s.add_argument("name", choices=["accuracy", "edge-bias", "grids", "target-shape", "lenses", "handeye", "trust",
-                                        "model-bias", "verify", "stereo", "guided"])
+                                        "model-bias", "verify", "stereo", "guided", "boards"])
     s.add_argument("--sessions", type=int, default=None,
                    help="verify: verification sessions per scenario (default 20); stereo: sessions of the accuracy "
                         "table (default 5)")
@@ -93,6 +93,11 @@ def cmd_study(args: argparse.Namespace) -> int:
         from ..studies.stereo_study import stereo_study
 
         stereo_study(Path(args.out), args.views or 15, args.seed, args.draws or 10, args.sessions or 5)
+        return EXIT_OK
+    if args.name == "boards":
+        from ..studies.boards_study import boards_study
+
+        boards_study(Path(args.out), views=args.views or 12, seed=args.seed)
         return EXIT_OK
     from ..studies.study import run_study
 

@@ -54,6 +54,10 @@ class Detection:
     reason: str = ""  # empty when usable
     name: str = ""
     note: str = ""  # what was left out of a usable view
+    # a marker board's markers that were used: ids (M,) and corners (M, 4, 2) px (the live picture draws them)
+    marker_ids: np.ndarray | None = None
+    marker_corners: np.ndarray | None = None
+    corners_rejected: int = 0  # a marker board's corners located but not on a saddle (NaN rows among the unseen)
 
     @property
     def ok(self) -> bool:

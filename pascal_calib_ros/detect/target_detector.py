@@ -4,19 +4,24 @@ them and checkerboards; the circles' edges are measured to subpixel accuracy.
 1. Dark blobs by global (Otsu) and, failing that, local thresholding of a downscaled copy;
    contours with their holes (``cv2.findContours``, two-level hierarchy).
 2. Candidates: blobs whose outline is an ellipse (fit residual small against the size); a ring is
-   such a blob with one elliptical, nearly concentric hole of the expected radius ratio; a disc
-   has no hole. Features are paired with the target by their sizes and layout.
-3. Every circle edge is refined by :func:`refine_edge`. A feature touching the image border, too
-   blurred or absent rejects the view with a reason: a detection never guesses.
+   such a blob with an elliptical hole that, with it, is the image of two concentric circles of
+   the expected radius ratio (:func:`.grids.concentric_fit`, a projective test: a close, tilted
+   ring's two ellipses are far from concentric); a disc has no hole. Features are paired with the
+   target by their sizes and layout.
+3. Every circle edge is refined by :func:`refine_edge`. A feature cut by the image border (an
+   elliptical arc leaving the frame; not the sheet around it), too small, too blurred or absent
+   rejects the view with a reason that says which: a detection never guesses.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
+from ..geometry.circular import CircularPointError, centre_image_from_ring
 from ..geometry.conic import (
     Ellipse,
     ellipses_from_conics,
@@ -27,6 +32,7 @@ from ..geometry.conic import (
 from ..targets import Target
 from .detection import DEFAULT_PARAMS, CircleEdge, Detection, DetectionParams
 from .edges import EdgeError, EdgeFit, refine_edge
+from .grids import concentric_fit
 
 
 @dataclass
@@ -36,6 +42,19 @@ class _Blob:
     holes: list[tuple[np.ndarray, Ellipse]]
     touches_border: bool
     fit_residual: float
+    scale: int = 1  # the downscaling of the image the contours were traced in
+
+
+@dataclass
+class _Cut:
+    """A dark, non-elliptical shape with strong edges cut by the image border: its outline
+    (N, 2), traced in an image of ``size`` (width, height) downscaled by ``scale``. Whether it is
+    a circle's image leaving the frame is decided when a rejection needs it (:func:`_cut_circle`)."""
+
+    contour: np.ndarray
+    size: tuple[int, int]
+    scale: int
+    image: np.ndarray | None = None  # set: the edge strength off the border is still to be checked
 
 
 def _to_float(image: np.ndarray) -> np.ndarray:
@@ -58,9 +77,9 @@ def _grey_range(image: np.ndarray, gray: np.ndarray) -> float:
 
 
 def find_blobs(gray: np.ndarray, params: DetectionParams, modes: tuple[str, ...] = ("otsu", "adaptive")
-               ) -> tuple[list[_Blob], int]:
+               ) -> tuple[list[_Blob], list[_Cut]]:
     """Elliptical dark blobs (with their elliptical holes), full-resolution coordinates, and the
-    number of large non-elliptical dark shapes cut by the image border. Thresholds in ``modes``
+    non-elliptical dark shapes cut by the image border (of every pass). Thresholds in ``modes``
     are tried in turn until one gives a blob with a hole (a ring); the last one's blobs are kept."""
     h, w = gray.shape
     scale = 1
@@ -70,14 +89,15 @@ def find_blobs(gray: np.ndarray, params: DetectionParams, modes: tuple[str, ...]
         scale *= 2
     small8 = np.clip(small, 0, 255).astype(np.uint8)
     blobs: list[_Blob] = []
-    cut = 0
+    cut: list[_Cut] = []
     for mode in modes:
         if mode == "otsu":
             _, mask = cv2.threshold(small8, 0, 255, cv2.THRESH_BINARY_INV | cv2.THRESH_OTSU)
         else:
             block = max(3, (max(small8.shape) // 8) | 1)
             mask = cv2.adaptiveThreshold(small8, 255, cv2.ADAPTIVE_THRESH_MEAN_C, cv2.THRESH_BINARY_INV, block, 10)
-        blobs, cut = _blobs_from_mask(mask, scale, w, h, params, small)
+        blobs, cut_here = _blobs_from_mask(mask, scale, w, h, params, small)
+        cut += cut_here
         if any(b.holes for b in blobs) or mode == modes[-1]:
             break
     return blobs, cut
@@ -94,10 +114,10 @@ def _sobel_magnitude_at(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.nda
 
 
 def _blobs_from_mask(mask: np.ndarray, scale: int, w: int, h: int, params: DetectionParams,
-                     img: np.ndarray) -> tuple[list[_Blob], int]:
+                     img: np.ndarray) -> tuple[list[_Blob], list[_Cut]]:
     contours, hier = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
     if hier is None:
-        return [], 0
+        return [], []
     hier = hier[0]
     min_r = params.min_radius / scale
     margin = params.border_margin
@@ -111,12 +131,16 @@ def _blobs_from_mask(mask: np.ndarray, scale: int, w: int, h: int, params: Detec
             continue
         cand.append((i, x <= 1 or y <= 1 or x + bw >= sw - 1 or y + bh >= sh - 1))
     if not cand:
-        return [], 0
+        return [], []
     cpts = [contours[i][::2, 0, :] for i, _ in cand]  # every other pixel is plenty for a median
     owner = np.repeat(np.arange(len(cand)), [len(c) for c in cpts])
     allp = np.concatenate(cpts)
     strength = group_medians(_sobel_magnitude_at(img, allp[:, 0], allp[:, 1]), owner, len(cand))
     strong = [k for k in range(len(cand)) if strength[k] >= params.min_edge_strength]  # else soft shading
+    # a shape mostly cut off by the image border has no edge along the border: its own edge's
+    # strength is looked at if a rejection needs it (_cut_circle)
+    cut = [_Cut(contours[i][:, 0, :], (sw, sh), scale, img) for k, (i, at) in enumerate(cand)
+           if at and strength[k] < params.min_edge_strength]
     holes_of = {}
     for k in strong:
         hs, j = [], hier[cand[k][0]][2]
@@ -133,15 +157,14 @@ def _blobs_from_mask(mask: np.ndarray, scale: int, w: int, h: int, params: Detec
         pts_of = dict(zip(to_fit, np.split(full, np.cumsum([len(contours[i]) for i in to_fit])[:-1]), strict=True))
     fits = dict(zip(to_fit, _ellipses_of([pts_of[i] for i in to_fit]), strict=True))
     out: list[_Blob] = []
-    cut = 0
     for k in strong:
         i, at_border = cand[k]
         pts = pts_of[i]
         fit = fits[i]
         x, y, bw, bh = cv2.boundingRect(contours[i])
         if fit is None or fit[1] > params.ellipse_tolerance * min(fit[0].a, fit[0].b) + 0.7 * scale:
-            if at_border and bw * bh < 0.5 * sw * sh:
-                cut += 1
+            if at_border:
+                cut.append(_Cut(contours[i][:, 0, :], (sw, sh), scale))
             continue
         e, res = fit
         # the contour's extent at full resolution, from its bounding box (the same integers)
@@ -154,8 +177,43 @@ def _blobs_from_mask(mask: np.ndarray, scale: int, w: int, h: int, params: Detec
             hf = fits[j]
             if hf is not None and hf[1] < params.ellipse_tolerance * min(hf[0].a, hf[0].b) + 0.7 * scale:
                 holes.append((pts_of[j], hf[0]))
-        out.append(_Blob(pts, e, holes, touches, res))
+        out.append(_Blob(pts, e, holes, touches, res, scale))
     return out, cut
+
+
+def _cut_circle(cuts: list[_Cut], params: DetectionParams) -> bool:
+    """Whether one of the shapes cut by the image border is a circle's image cut by it: a stretch
+    of its outline off the border is an ellipse's arc, at least a quarter of it and of at least
+    ``min_radius``. The sheet's edges bounding the background beside a sheet cut by the border
+    are not: straight or gently curved lines, joined at corners."""
+    runs: list[np.ndarray] = []
+    scales: list[int] = []
+    for c in cuts:
+        (sw, sh), pts = c.size, c.contour
+        inside = (pts[:, 0] > 0) & (pts[:, 1] > 0) & (pts[:, 0] < sw - 1) & (pts[:, 1] < sh - 1)
+        if inside.all() or not inside.any():
+            continue
+        if c.image is not None:
+            off = pts[inside][::2]
+            if np.median(_sobel_magnitude_at(c.image, off[:, 0], off[:, 1])) < params.min_edge_strength:
+                continue  # soft shading
+        start = int(np.argmin(inside))  # a point on the border: the runs off it do not wrap around
+        pts, inside = np.roll(pts, -start, axis=0), np.roll(inside, -start)
+        # runs off the border: from a step up (i + 1) to the next step down (i), closed by a last False
+        steps = np.flatnonzero(np.diff(np.r_[inside, False].astype(np.int8)))
+        new = [pts[a + 1:b + 1].astype(float) * c.scale + (c.scale - 1) / 2
+               for a, b in zip(steps[::2], steps[1::2], strict=True) if b - a >= 12]
+        runs += new
+        scales += [c.scale] * len(new)
+    for run, scale, fit in zip(runs, scales, _ellipses_of(runs), strict=True):
+        if fit is None:
+            continue
+        e, res = fit
+        arc = float(np.sum(np.hypot(*np.diff(run, axis=0).T)))
+        if (res <= params.ellipse_tolerance * min(e.a, e.b) + 0.7 * scale and min(e.a, e.b) >= params.min_radius
+                and arc >= 0.25 * e.perimeter):
+            return True
+    return False
 
 
 def _ellipses_of(contours: list[np.ndarray]) -> list[tuple[Ellipse, float] | None]:
@@ -201,7 +259,7 @@ def detect_target(image: np.ndarray, target: Target, params: DetectionParams = D
     if target.grids:
         return _detect_grids(gray, work, target, params, det)
     # blobs are rings and discs; a checkerboard alone does not need them (half its time at 800x600)
-    blobs, cut_shapes = find_blobs(gray, params) if target.rings or target.discs else ([], 0)
+    blobs, cut_shapes = find_blobs(gray, params) if target.rings or target.discs else ([], [])
     if target.rings:
         try:
             ring_blob, hole = _pick_ring(blobs, target, params, cut_shapes)
@@ -219,7 +277,7 @@ def detect_target(image: np.ndarray, target: Target, params: DetectionParams = D
         if target.discs:
             disc_idx = 2 * len(target.rings)
             try:
-                disc_blob = _pick_disc(blobs, ring_blob, target, params)
+                disc_blob = _pick_disc(blobs, (ring_blob, hole), target, params, cut_shapes)
                 fit = _edge(work, disc_blob.ellipse, params)
                 det.edges.append(CircleEdge(disc_idx, fit.points, fit.conic, float(np.median(fit.width)), fit.rms))
             except (_Reject, EdgeError) as exc:
@@ -228,13 +286,13 @@ def detect_target(image: np.ndarray, target: Target, params: DetectionParams = D
     elif target.discs:
         det.reason = "targets without a ring are not supported by the detector yet"
         return det
-    if checkerboard and target.checkerboards:
-        from .checkerboard import find_checkerboard
+    if checkerboard and target.boards:
+        from .board_corners import find_board_corners
 
         grey8 = image if image.ndim == 2 and image.dtype == np.uint8 else np.clip(gray, 0, 255).astype(np.uint8)
-        corners = find_checkerboard(grey8, target, det)
+        corners = find_board_corners(grey8, target, det)
         if corners is None and not target.rings:
-            det.reason = det.reason or "checkerboard not found"
+            det.reason = det.reason or f"{target.boards[0].kind} not found"
             return det
         det.corners = corners
     return det
@@ -271,30 +329,34 @@ def _detect_grids(gray: np.ndarray, work: np.ndarray, target: Target, params: De
     return det
 
 
-def _pick_ring(blobs: list[_Blob], target: Target, params: DetectionParams, cut_shapes: int = 0
+def _pick_ring(blobs: list[_Blob], target: Target, params: DetectionParams, cut_shapes: list[_Cut] | None = None
                ) -> tuple[_Blob, Ellipse]:
     ring = target.rings[0]
     ratio = ring.inner_radius / ring.outer_radius
     cands: list[tuple[float, _Blob, Ellipse]] = []
     cut = False
+    small = 0.0  # the narrowest semi-axis of a ring too small to measure
     for b in blobs:
-        if min(b.ellipse.a, b.ellipse.b) < params.min_radius:
-            continue
+        size = np.sqrt(b.ellipse.a * b.ellipse.b)
         for _, he in b.holes:
-            size = np.sqrt(b.ellipse.a * b.ellipse.b)
-            off = np.hypot(he.cx - b.ellipse.cx, he.cy - b.ellipse.cy) / size
-            r = np.sqrt(he.a * he.b) / size
-            if off < 5 * params.ellipse_tolerance and abs(r / ratio - 1) < 0.35 + 5 * params.ellipse_tolerance:
-                if b.touches_border:
-                    cut = True
+            if b.touches_border:  # the outline is cut: its ellipse says little beyond the hole's size
+                cut |= bool(abs(np.sqrt(he.a * he.b) / size / ratio - 1) < 0.35 + 5 * params.ellipse_tolerance)
+                continue
+            # concentric whatever the perspective; the contours' ellipses are uncertain by a few
+            # pixels (threshold level, blur, the pixel grid), much of a small hole's shape
+            spread, r = concentric_fit(b.ellipse, he)
+            if (spread < 4 * params.ellipse_tolerance + 8 * b.scale / min(he.a, he.b)
+                    and abs(r / ratio - 1) < 0.35 + 5 * params.ellipse_tolerance):
+                if min(b.ellipse.a, b.ellipse.b) < params.min_radius:
+                    small = max(small, min(b.ellipse.a, b.ellipse.b))
                     continue
                 cands.append((size, b, he))
     if not cands:
-        if cut:
+        if cut or _cut_circle(cut_shapes or [], params):  # a ring-like blob at the border, or a circle's arc
             raise _Reject("ring cut by the image border (keep the whole ring in view)")
-        if cut_shapes:
-            raise _Reject("no complete ring found; a dark shape is cut by the image border "
-                          "(target partly out of view?)")
+        if small:
+            raise _Reject(f"ring too small ({2 * small:.0f} px across at its narrowest; "
+                          f"at least {2 * params.min_radius:.0f} px)")
         raise _Reject("no ring found")
     if len(cands) > 1:
         cands.sort(key=lambda c: -c[0])
@@ -303,11 +365,17 @@ def _pick_ring(blobs: list[_Blob], target: Target, params: DetectionParams, cut_
     return cands[0][1], cands[0][2]
 
 
-def _pick_disc(blobs: list[_Blob], ring_blob: _Blob, target: Target, params: DetectionParams) -> _Blob:
-    ring, disc = target.rings[0], target.discs[0]
-    size_ratio = disc.radius / ring.outer_radius
-    dist_ratio = np.hypot(disc.center[0] - ring.center[0], disc.center[1] - ring.center[1]) / ring.outer_radius
+def _pick_disc(blobs: list[_Blob], ring: tuple[_Blob, Ellipse], target: Target, params: DetectionParams,
+               cut_shapes: list[_Cut] | None = None) -> _Blob:
+    """The blob that is the target's disc: its size and distance from the ring's centre, relative
+    to the ring's size, as printed once the perspective's scale at either is divided out
+    (:func:`_perspective_scale`), within a factor 1.8 each (the tilt's foreshortening, the lens)."""
+    ring_blob = ring[0]
+    printed, disc = target.rings[0], target.discs[0]
+    size_ratio = disc.radius / printed.outer_radius
+    dist_ratio = np.hypot(disc.center[0] - printed.center[0], disc.center[1] - printed.center[1]) / printed.outer_radius
     rs = np.sqrt(ring_blob.ellipse.a * ring_blob.ellipse.b)
+    scale_at, centre = _perspective_scale(*ring)
     best: tuple[float, _Blob] | None = None
     cut = False
     for b in blobs:
@@ -316,8 +384,11 @@ def _pick_disc(blobs: list[_Blob], ring_blob: _Blob, target: Target, params: Det
             continue
         if size < params.min_radius or b.fit_residual > 2 / 3 * params.ellipse_tolerance * size + 0.7:
             continue
-        sr = size / rs
-        dr = np.hypot(b.ellipse.cx - ring_blob.ellipse.cx, b.ellipse.cy - ring_blob.ellipse.cy) / rs
+        q = scale_at(b.ellipse.cx, b.ellipse.cy)
+        if q <= 0:
+            continue  # beyond the plane's horizon
+        sr = size / rs / q**1.5
+        dr = np.hypot(b.ellipse.cx - centre[0], b.ellipse.cy - centre[1]) / rs / q
         score = abs(np.log(sr / size_ratio)) + abs(np.log(dr / dist_ratio))
         if abs(np.log(sr / size_ratio)) > 0.6 or abs(np.log(dr / dist_ratio)) > 0.6:
             continue
@@ -327,5 +398,27 @@ def _pick_disc(blobs: list[_Blob], ring_blob: _Blob, target: Target, params: Det
         if best is None or score < best[0]:
             best = (score, b)
     if best is None:
-        raise _Reject("disc cut by the image border" if cut else "no disc found beside the ring")
+        # a disc-like blob at the border, or a circle's arc leaving the frame (the ring is whole)
+        raise _Reject("disc cut by the image border" if cut or _cut_circle(cut_shapes or [], params)
+                      else "no disc found beside the ring")
     return best[1]
+
+
+def _perspective_scale(ring_blob: _Blob, hole: Ellipse) -> tuple[Callable[[float, float], float], np.ndarray]:
+    """How the target plane's image scale at a pixel compares with that at the ring's centre, and
+    the image of that centre. The ring's two ellipses give the centre's image c and the plane's
+    vanishing line l = C_out c (:mod:`..geometry.circular`). A plane's homography scales areas
+    near a pixel x by (l.x)^3 (x = (u, v, 1)), so with q = l.x / l.c a circle at x looks q^1.5
+    times as large as at c, and a segment from c to x is q times as long as at c's scale (along
+    a line the map is a 1-D homography: lengths scale by the product of the ends' l.x). Close,
+    tilted views change the disc's apparent size against the ring's by 2x and more. Returns q
+    (1 everywhere if the ellipses give no centre) and c."""
+    C = ring_blob.ellipse.to_conic()
+    try:
+        c = centre_image_from_ring(C, hole.to_conic())
+    except (CircularPointError, np.linalg.LinAlgError):
+        e = ring_blob.ellipse
+        return (lambda x, y: 1.0), np.array([e.cx, e.cy, 1.0])
+    line = C @ c
+    at_c = float(line @ c)
+    return (lambda x, y: float(line[0] * x + line[1] * y + line[2]) / at_c), c

@@ -1,5 +1,7 @@
 """Printable targets at exact scale (PDF, SVG or PNG): the page is the sheet, 1 m = 1 m.
 
+Boards are drawn module by module from the same layout the renderer and the detector use
+(:meth:`ModuleLattice.rectangles`): a ChArUco as OpenCV draws it, an AprilGrid as Kalibr does.
 Each page carries the target's name, its feature dimensions and a 50 mm scale bar with 10 mm
 ticks, so a user can print at 100 %, measure, and correct the YAML if the printer scaled it.
 """
@@ -19,8 +21,7 @@ def _describe(t: Target) -> str:
     parts += [f"{g.rows}x{g.cols} {g.kind}s r {1000 * g.outer_radius:g}"
               + (f"/{1000 * g.inner_radius:g}" if g.kind == "ring" else "") + f" mm, pitch {1000 * g.pitch:g} mm"
               for g in t.grids]
-    parts += [f"checkerboard {b.squares[0]}x{b.squares[1]} squares of {1000 * b.square_size:g} mm"
-              for b in t.checkerboards]
+    parts += [b.describe() for b in t.boards]
     return f"{t.name}: sheet {1000 * t.sheet[0]:g} x {1000 * t.sheet[1]:g} mm; " + ", ".join(parts)
 
 
@@ -51,15 +52,10 @@ def write_printable(target: Target, path: str | Path) -> Path:
             ax.add_patch(Circle((x, y), g.outer_radius, color="black", lw=0))
             if g.kind == "ring":
                 ax.add_patch(Circle((x, y), g.inner_radius, color="white", lw=0))
-    for b in target.checkerboards:
-        for i in range(b.squares[0]):
-            for j in range(b.squares[1]):
-                black = (i + j) % 2 == 0
-                if b.first_square == "white":
-                    black = not black
-                if black:
-                    ax.add_patch(Rectangle((b.origin[0] + i * b.square_size, b.origin[1] + j * b.square_size),
-                                           b.square_size, b.square_size, color="black", lw=0))
+    for b in target.boards:  # the dark modules of every board: squares, markers, tags
+        for lattice in b.lattices():
+            for x, y, dx, dy in lattice.rectangles():
+                ax.add_patch(Rectangle((x, y), dx, dy, color="black", lw=0, antialiased=False))
     # scale bar (50 mm, ticks every 10 mm) and the description along the bottom edge
     x0, y0 = 0.008, h - 0.006
     ax.plot([x0, x0 + 0.05], [y0, y0], color="black", lw=0.8)

@@ -150,7 +150,8 @@ def report_numbers(d: ReportData) -> dict[str, Any]:
         "rms_px": res.rms, "degeneracy_ratio": res.degeneracy_ratio, "warnings": d.assessment.warnings,
         "views": [{"name": v.name, "used": v.used, "reason": v.reason, "rms_px": v.rms, "edge_offset_px": v.edge_offset,
                    "corners_rejected_by_detector": v.unmeasured_corners, "outliers_rejected": {
-                       "edge_points": v.rejected_edges, "corners": v.rejected_corners}}
+                       "edge_points": v.rejected_edges, "corners": v.rejected_corners},
+                   **({} if v.board_corners is None else {"board_corners_measured": list(v.board_corners)})}
                   for v in res.views],
         "coverage": {"observed_fraction": float(d.field.mean()),
                      "observed_field": "union over the used views of the convex hull of their feature points",

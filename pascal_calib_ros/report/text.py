@@ -84,8 +84,11 @@ def _n(n: int, noun: str) -> str:
 
 
 def view_rejections(view: ViewReport) -> str:
-    """'2 corners rejected by the detector (not on a saddle), 1 corner rejected as outliers', or ''."""
+    """'2 corners rejected by the detector (not on a saddle), 1 corner rejected as outliers', or '';
+    a marker board's partial view first says how many of its corners it measured."""
     parts = []
+    if view.board_corners is not None and view.board_corners[0] < view.board_corners[1]:
+        parts.append(f"{view.board_corners[0]} of the board's {view.board_corners[1]} corners measured")
     if view.unmeasured_corners:
         parts.append(f"{_n(view.unmeasured_corners, 'corner')} rejected by the detector (not on a saddle)")
     out = [_n(n, what) for n, what in ((view.rejected_corners, "corner"), (view.rejected_edges, "edge point")) if n]
@@ -102,7 +105,8 @@ def summary_line(res: CalibrationResult) -> str:
 
 
 def summary_lines(d: ReportData, width: int = 88) -> list[str]:
-    """The summary page's text: parameters, views, uncertainty, the verdict, every warning."""
+    """The summary page's text: parameters, views, uncertainty, the verdict, every warning; no line
+    longer than ``width``."""
     res = d.res
     names = ["fx", "fy", "cx", "cy", *res.camera().lens.coefficients]
     vals = [res.K[0, 0], res.K[1, 1], res.K[0, 2], res.K[1, 2], *res.D]
@@ -125,20 +129,23 @@ def summary_lines(d: ReportData, width: int = 88) -> list[str]:
     trimmed = [v for v in res.views if v.used and view_rejections(v)]
     if trimmed:
         lines.append(f"observations left out ({len(trimmed)} views):")
-        lines += [f"  {v.name}: {view_rejections(v)}"[:width] for v in trimmed[:8]]
+        lines += [f"  {v.name}: {view_rejections(v)}" for v in trimmed[:8]]
         lines.append("")
     lines += textwrap.wrap(f"standard deviations: {res.std_model}", width)
     lines.append("")
     rejected = [v for v in res.views if not v.used]
     if rejected:
         lines.append(f"rejected views ({len(rejected)}):")
-        lines += [f"  {v.name}: {v.reason}"[:width] for v in rejected[:12]]
+        lines += [f"  {v.name}: {v.reason}" for v in rejected[:12]]
         lines.append("")
     others = [x for x in res.warnings if x != b.hint]  # the verdict is said above
     lines += ["warnings:" if others else "no other warnings"]
     for x in others:
         lines += textwrap.wrap(x, width, initial_indent="- ", subsequent_indent="  ")
-    return lines
+    # every line within the width (a panel cuts what runs past its edge): long ones wrap, indented
+    return [w for line in lines
+            for w in textwrap.wrap(line, width, subsequent_indent=" " * (len(line) - len(line.lstrip()) + 4),
+                                   drop_whitespace=False) or [line]]
 
 
 def hand_eye_summary(he: HandEyeResult) -> str:

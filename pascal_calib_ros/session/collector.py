@@ -22,6 +22,7 @@ import numpy as np
 from ..detect.detection import Detection
 from ..geometry.conic import ellipses_from_conics
 from ..geometry.transform import Transform
+from ..targets import Target
 
 AXES = ("x", "y", "size", "skew")
 SPANS = {"x": 0.6, "y": 0.6, "size": 0.25, "skew": 0.3}
@@ -29,10 +30,12 @@ SPANS = {"x": 0.6, "y": 0.6, "size": 0.25, "skew": 0.3}
 READY_COVERAGE = 0.5  # ready: every coverage axis at least half covered (the bars on ~/detections)
 
 
-def view_parameters(det: Detection) -> np.ndarray | None:
-    """(x, y, size, skew) of a usable detection, None without a circle."""
+def view_parameters(det: Detection, board_points: np.ndarray | None = None) -> np.ndarray | None:
+    """(x, y, size, skew) of a usable detection, None without a circle or (given the board's corner
+    points on the sheet, ``board_points``) at least four board corners. A board's skew is that of
+    the affine map of its corners, 1 - s2 / s1 of its singular values: a circle's 1 - b / a."""
     if not det.edges:
-        return None
+        return _board_parameters(det, board_points)
     edges = det.edges if len(det.edges) > 3 else det.edges[:1]
     par, real = ellipses_from_conics(np.array([e.conic for e in edges]))
     par = par[real]
@@ -48,6 +51,28 @@ def view_parameters(det: Detection) -> np.ndarray | None:
                      np.sqrt(area) / diag, 1.0 - float(np.median(b / a))])
 
 
+def _board_parameters(det: Detection, board_points: np.ndarray | None) -> np.ndarray | None:
+    if det.corners is None or board_points is None:
+        return None
+    seen = np.all(np.isfinite(det.corners), 1)
+    if seen.sum() < 4:
+        return None
+    img, obj = det.corners[seen], np.asarray(board_points, float)[seen]
+    A, *_ = np.linalg.lstsq(np.c_[obj, np.ones(len(obj))], img, rcond=None)
+    s = np.linalg.svd(A[:2], compute_uv=False)
+    area = float(cv2.contourArea(cv2.convexHull(img.astype(np.float32))))
+    return np.array([float(img[:, 0].mean()) / det.width, float(img[:, 1].mean()) / det.height,
+                     np.sqrt(area) / float(np.hypot(det.width, det.height)), 1.0 - float(s[1] / s[0])])
+
+
+NO_PLACE = "no circle or board corners to place the view"
+
+
+def placement_points(target: Target) -> np.ndarray | None:
+    """The board corners that place a view of a target without circles (None: its circles do)."""
+    return None if target.circles or target.board is None else target.board.corner_points()
+
+
 @dataclass
 class ViewCollector:
     min_views: int = 8
@@ -58,6 +83,7 @@ class ViewCollector:
     robot_poses: list[Transform | None] = field(default_factory=list)  # T_base_tool per view (or None)
     rejected: Counter[str] = field(default_factory=Counter)
     last_rejection: str = ""
+    board_points: np.ndarray | None = None  # the target's board corners on the sheet (a board-only target)
 
     def offer(self, det: Detection, robot_pose: Transform | None = None, force: bool = False) -> tuple[bool, str]:
         """Store the view if usable and new enough (``force``: whatever it resembles) with its
@@ -67,9 +93,9 @@ class ViewCollector:
         if self.views and (det.width, det.height) != (self.views[0].width, self.views[0].height):
             return self.reject(f"image size {det.width}x{det.height} differs from the session's "
                                 f"{self.views[0].width}x{self.views[0].height}")
-        p = view_parameters(det)
+        p = view_parameters(det, self.board_points)
         if p is None:
-            return self.reject("no circle to place the view")
+            return self.reject(NO_PLACE)
         if self.params and not force:
             d = min(float(np.sum(np.abs(p - q))) for q in self.params)
             if d < self.min_distance:

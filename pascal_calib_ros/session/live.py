@@ -65,9 +65,11 @@ class LiveSession:
     """The collection state of a live session; every method may be called from any thread."""
 
     def __init__(self, min_views: int, max_views: int, min_distance: float, max_motion_px: float,
-                 collect: str) -> None:
+                 collect: str, board_points: np.ndarray | None = None) -> None:
+        """``board_points``: the target's board corners on the sheet, to place a view of a target
+        without circles (:func:`.collector.view_parameters`)."""
         self.lock = threading.Lock()
-        self.collector = ViewCollector(min_views, max_views, min_distance)
+        self.collector = ViewCollector(min_views, max_views, min_distance, board_points=board_points)
         self.footprints: list[np.ndarray] = []  # convex hulls of the stored views' features
         self.gate = StillnessGate(max_motion_px)
         self.captures = CaptureSlot()

@@ -2,7 +2,8 @@
 person moving the target needs to see, like ROS ``camera_calibration``'s window.
 
 - The frame (grey, shown in colour), with the current detection drawn on it: the fitted edges
-  green when usable, red with the rejection reason when not; checkerboard corners as circles.
+  green when usable, red with the rejection reason when not; checkerboard corners as circles;
+  a marker board's markers outlined with their ids.
 - The footprints of the stored views (each the convex hull of a view's feature points, see
   :func:`.diagnostics.feature_points`), tinted and outlined: the parts of the image no view has covered yet
   are the ones left untinted.
@@ -31,6 +32,7 @@ LABELS = {"x": "X", "y": "Y", "size": "Size", "skew": "Skew"}
 DETECTED_BGR = (0, 200, 0)
 REJECTED_BGR = (0, 0, 255)
 CORNER_BGR = (255, 128, 0)
+MARKER_BGR = (0, 220, 255)  # yellow: a marker board's markers and their ids
 FOOTPRINT_BGR = (255, 0, 255)  # magenta: stands apart from the green / red edges and blue corners
 FOOTPRINT_ALPHA = 0.3
 BAR_FULL_BGR = (0, 255, 0)
@@ -135,6 +137,17 @@ def _draw_footprints(vis: np.ndarray, footprints: Sequence[np.ndarray], thick: i
     cv2.polylines(vis, [poly.reshape(-1, 1, 2) for poly in polys], True, FOOTPRINT_BGR, thick)
 
 
+def _draw_markers(vis: np.ndarray, det: Detection, thick: int, u: float) -> None:
+    """A marker board's markers used: their outlines and ids (yellow)."""
+    if det.marker_ids is None or det.marker_corners is None:
+        return
+    quads = [np.round(c).astype(np.int32).reshape(-1, 1, 2) for c in det.marker_corners]
+    cv2.polylines(vis, quads, True, MARKER_BGR, thick)
+    for k, c in zip(det.marker_ids, det.marker_corners, strict=True):
+        x, y = np.mean(c, axis=0)
+        _text(vis, str(int(k)), (round(x - 6 * u), round(y + 5 * u)), 0.4 * u, MARKER_BGR, thick)
+
+
 def _draw_detection(vis: np.ndarray, det: Detection | None, verdict: str | None, verdict_ok: bool | None,
                     u: float) -> None:
     """The frame's detection (ellipses, corners) and its line of text."""
@@ -146,6 +159,7 @@ def _draw_detection(vis: np.ndarray, det: Detection | None, verdict: str | None,
         edge_thick = max(2, round(1.5 * u))  # stands out on the tinted footprints
         for e in det.edges:
             cv2.polylines(vis, [np.round(e.points).astype(np.int32).reshape(-1, 1, 2)], True, colour, edge_thick)
+        _draw_markers(vis, det, thick, u)
         if det.corners is not None:
             r = max(3, round(3 * u))
             for x, y in np.asarray(det.corners, float).reshape(-1, 2):

@@ -26,7 +26,7 @@ import numpy as np
 from ..detect.detection import Detection, feature_points
 from ..geometry.image_field import view_hulls
 from .arm_session import MOVING, StillnessGate
-from .collector import READY_COVERAGE, ViewCollector, view_parameters
+from .collector import NO_PLACE, READY_COVERAGE, ViewCollector, view_parameters
 from .frame_pairing import SIDES
 from .overlay import draw_live_overlay
 
@@ -82,9 +82,9 @@ class StereoCollector:
                 reasons[c] = (f"image size {det.width}x{det.height} differs from the session's "
                               f"{cam.views[0].width}x{cam.views[0].height}")
             if not reasons[c]:
-                params[c] = view_parameters(det)
+                params[c] = view_parameters(det, cam.board_points)
                 if params[c] is None:
-                    reasons[c] = "no circle to place the view"
+                    reasons[c] = NO_PLACE
             if reasons[c]:
                 cam.reject(reasons[c])
         usable = [p is not None for p in params]
@@ -168,9 +168,12 @@ class PairOutcome:
 class StereoSession:
     """The collection state of a live stereo session; every method may be called from any thread."""
 
-    def __init__(self, min_views: int, max_views: int, min_distance: float, max_motion_px: float) -> None:
+    def __init__(self, min_views: int, max_views: int, min_distance: float, max_motion_px: float,
+                 board_points: np.ndarray | None = None) -> None:
         self.lock = threading.Lock()
         self.collector = StereoCollector(min_views, max_views, min_distance)
+        for cam in self.collector.cameras:
+            cam.board_points = board_points
         self.collector.set_limits(min_views, max_views, min_distance)
         self.gates = (StillnessGate(max_motion_px), StillnessGate(max_motion_px))
         self.footprints: tuple[list[np.ndarray], list[np.ndarray]] = ([], [])

@@ -13,6 +13,7 @@ image (and written as JSON by :func:`write_view`).
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -20,7 +21,7 @@ import cv2
 import numpy as np
 
 from ..geometry.camera import Camera, rodrigues, rotation_to_rvec
-from ..targets import Target
+from ..targets import ModuleLattice, Target
 
 WHITE = 0.85
 BLACK = 0.06
@@ -181,10 +182,68 @@ def reflectance(target: Target, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarra
         inside = (_soft_step(x0 - x, *pix_grad(-1.0, 0.0)) * _soft_step(x - x1, *pix_grad(1.0, 0.0))
                   * _soft_step(y0 - y, *pix_grad(0.0, -1.0)) * _soft_step(y - y1, *pix_grad(0.0, 1.0)))
         dark += pattern * inside
+    for board in target.boards:
+        if board.kind != "checkerboard":
+            for lattice in board.lattices():
+                dark += lattice_darkness(lattice, x, y, pix_grad)
     w, h = target.sheet
     sheet = (_soft_step(-x, *pix_grad(-1.0, 0.0)) * _soft_step(x - w, *pix_grad(1.0, 0.0))
              * _soft_step(-y, *pix_grad(0.0, -1.0)) * _soft_step(y - h, *pix_grad(0.0, 1.0)))
     return WHITE - (WHITE - BLACK) * np.clip(dark, 0.0, 1.0), sheet
+
+
+def _nearest_boundary(rel: np.ndarray, lat: ModuleLattice, count: int) -> np.ndarray:
+    """Position (from the lattice's origin, along one axis) of the module edge nearest to ``rel``,
+    over the cell of ``rel`` and its two neighbours."""
+    n = lat.bits.shape[2]
+    c0 = np.floor(rel / lat.pitch)
+    best, where = np.full(rel.shape, np.inf), np.zeros_like(rel)
+    for dc in (-1, 0, 1):
+        c = np.clip(c0 + dc, 0, count - 1)
+        j = np.clip(np.round((rel - c * lat.pitch - lat.offset) / lat.module), 0, n)
+        pos = c * lat.pitch + lat.offset + j * lat.module
+        closer = np.abs(rel - pos) < best
+        best, where = np.where(closer, np.abs(rel - pos), best), np.where(closer, pos, where)
+    return where
+
+
+def _bit_at(lat: ModuleLattice, rx: np.ndarray, ry: np.ndarray) -> np.ndarray:
+    """Whether the module at (rx, ry) (from the lattice's origin) is dark; outside every module: no."""
+    rows, cols, n, _ = lat.bits.shape
+    cx, cy = np.floor(rx / lat.pitch).astype(int), np.floor(ry / lat.pitch).astype(int)
+    j = np.floor((rx - cx * lat.pitch - lat.offset) / lat.module).astype(int)
+    i = np.floor((ry - cy * lat.pitch - lat.offset) / lat.module).astype(int)
+    inside = (cx >= 0) & (cx < cols) & (cy >= 0) & (cy < rows) & (i >= 0) & (i < n) & (j >= 0) & (j < n)
+    return lat.bits[np.clip(cy, 0, rows - 1), np.clip(cx, 0, cols - 1), np.clip(i, 0, n - 1),
+                    np.clip(j, 0, n - 1)] & inside
+
+
+def lattice_darkness(lat: ModuleLattice, x: np.ndarray, y: np.ndarray,
+                     pix_grad: Callable[[float, float], tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    """Anti-aliased darkness of a lattice of dark modules (:class:`ModuleLattice`) at plane
+    coordinates (x, y): for the module edge nearest to the pixel along x and along y (in its cell
+    or a neighbouring one), the box-filter coverage of either side (the soft steps of the
+    checkerboard above) times whether the module on that side is dark; exact for straight edges
+    longer than a pixel, as the checkerboard's."""
+    rows, cols = lat.bits.shape[:2]
+    rx, ry = x - lat.origin[0], y - lat.origin[1]
+    out = np.zeros_like(x)
+    # only the pixels over the lattice (and a module around it) can be dark
+    near = ((rx > -lat.module) & (rx < cols * lat.pitch + lat.module)
+            & (ry > -lat.module) & (ry < rows * lat.pitch + lat.module))
+    rx, ry = rx[near], ry[near]
+    gxx, gxy = (np.asarray(g)[near] for g in pix_grad(1.0, 0.0))
+    gyx, gyy = (np.asarray(g)[near] for g in pix_grad(0.0, 1.0))
+    bx, by = _nearest_boundary(rx, lat, cols), _nearest_boundary(ry, lat, rows)
+    wx = _soft_step(bx - rx, gxx, gxy)  # share of the pixel beyond the x edge
+    wy = _soft_step(by - ry, gyx, gyy)
+    h = 0.5 * lat.module
+    dark = np.zeros_like(rx)
+    for sx, fx in ((h, wx), (-h, 1 - wx)):
+        for sy, fy in ((h, wy), (-h, 1 - wy)):
+            dark += _bit_at(lat, bx + sx, by + sy) * fx * fy
+    out[near] = dark
+    return out
 
 
 def _background(h: int, w: int, amplitude: float, rng: np.random.Generator) -> np.ndarray:
@@ -287,7 +346,7 @@ def feature_outline(target: Target, n: int = 64) -> np.ndarray:
     t = np.linspace(0, 2 * np.pi, n, endpoint=False)
     for c in target.circles[: 2 * len(target.rings) + len(target.discs)]:
         pts.append(np.stack([c.center[0] + c.radius * np.cos(t), c.center[1] + c.radius * np.sin(t)], 1))
-    boxes: list[tuple[float, float, float, float]] = [b.extent for b in target.checkerboards]
+    boxes: list[tuple[float, float, float, float]] = [b.extent for b in target.boards]
     boxes += [g.extent for g in target.grids]
     for x0, y0, x1, y1 in boxes:
         pts.append(np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]]))
@@ -327,3 +386,39 @@ def random_poses(target: Target, camera: Camera, n: int, rng: np.random.Generato
         if features_in_image(target, camera, pose, margin):
             poses.append(pose)
     return poses
+
+
+def board_visible_fraction(target: Target, camera: Camera, pose: Pose, margin: float = 5.0) -> float:
+    """Share of the board's corners that project inside the image with ``margin`` px to spare (0
+    for a target without a board, or one the lens folds)."""
+    if target.board is None:
+        return 0.0
+    P = target.board.corner_points()
+    X = (pose.R @ np.c_[P, np.zeros(len(P))].T).T + pose.t
+    if not camera.lens.wide and np.any(X[:, 2] <= 0):
+        return 0.0
+    uv = camera.project(X)
+    inside = ((uv[:, 0] >= margin) & (uv[:, 0] <= camera.width - 1 - margin)
+              & (uv[:, 1] >= margin) & (uv[:, 1] <= camera.height - 1 - margin))
+    return float(np.mean(inside))
+
+
+def partial_poses(target: Target, camera: Camera, n: int, rng: np.random.Generator,
+                  visible: tuple[float, float] = (0.3, 0.8), tilt_range: tuple[float, float] = (15.0, 45.0),
+                  size_range: tuple[float, float] = (0.6, 1.0), max_tries: int = 4000) -> list[Pose]:
+    """Poses where the board hangs partly out of the frame (a ``visible`` share of its corners in
+    view), its centre near the image's borders and corners: the views a marker board allows and a
+    whole board cannot give."""
+    poses: list[Pose] = []
+    for _ in range(max_tries):
+        if len(poses) == n:
+            return poses
+        side = rng.uniform(-0.1, 0.25)  # the centre this far from a border (fraction of the image)
+        u, v = rng.uniform(0, 1), rng.choice([side, 1 - side])
+        pixel = (u, v) if rng.uniform() < 0.5 else (v, u)
+        pose = look_at_pose(target, camera, (pixel[0] * camera.width, pixel[1] * camera.height),
+                            rng.uniform(*size_range), rng.uniform(*tilt_range), rng.uniform(0, 360),
+                            rng.uniform(-30, 30))
+        if visible[0] <= board_visible_fraction(target, camera, pose) <= visible[1]:
+            poses.append(pose)
+    raise RuntimeError("could not place the board partly in view; widen the ranges")

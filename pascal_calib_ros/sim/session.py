@@ -18,6 +18,7 @@ from .render import (
     SensorModel,
     SheetShape,
     look_at_pose,
+    partial_poses,
     random_poses,
     render_view,
     write_view,
@@ -50,6 +51,8 @@ class SessionSpec:
     dist: tuple[float, ...] = ()
     # where the target's centre is placed, as a fraction of the width and height
     pixel_range: tuple[float, float] = (0.2, 0.8)
+    # views where a marker board hangs partly out of the frame (render.partial_poses), after the others
+    partial_views: int = 0
 
     def sheet_shape(self, target: Target) -> SheetShape | None:
         """The sheet's shape over the frame of the target's features, or None if nominal."""
@@ -90,6 +93,9 @@ def session_views(target: Target, spec: SessionSpec) -> list[tuple[str, Pose | N
         px = [(0.02, 0.5), (0.98, 0.5), (0.5, 0.03), (0.5, 0.97)][side]
         pose = look_at_pose(target, cam, (px[0] * cam.width, px[1] * cam.height), 0.5, 25.0, 90.0 * j, 10.0)
         out.append((f"cut_{j:03d}", pose, sensor(k)))
+        k += 1
+    for j, p in enumerate(partial_poses(target, cam, spec.partial_views, rng) if spec.partial_views else []):
+        out.append((f"partial_{j:03d}", p, sensor(k)))
         k += 1
     for j in range(spec.empty_views):
         out.append((f"empty_{j:03d}", None, sensor(k)))

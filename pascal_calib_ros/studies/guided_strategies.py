@@ -32,7 +32,7 @@ from ..geometry.camera import Camera
 from ..geometry.conic import fit_conics_algebraic
 from ..geometry.image_field import observed_field_mask
 from ..geometry.transform import Transform
-from ..session.collector import ViewCollector
+from ..session.collector import ViewCollector, placement_points
 from ..sim.render import Pose, random_poses
 from ..sim.session import SessionSpec
 from ..targets import Target
@@ -149,8 +149,8 @@ class RandomPoses:
 
 
 def synthetic_detection(target: Target, cam: Camera, pose: Pose) -> Detection:
-    """A detection's edges (points and conics) drawn from the pose, without rendering: what the
-    diversity filter (:class:`..session.collector.ViewCollector`) looks at."""
+    """A detection's edges (points and conics) and board corners drawn from the pose, without
+    rendering: what the diversity filter (:class:`..session.collector.ViewCollector`) looks at."""
     a = np.linspace(0, 2 * np.pi, 48, endpoint=False)
     outer = [k for k, c in enumerate(target.circles) if c.dark_inside]
     pts = []
@@ -158,10 +158,18 @@ def synthetic_detection(target: Target, cam: Camera, pose: Pose) -> Detection:
         c = target.circles[k]
         xy = np.c_[c.center[0] + c.radius * np.cos(a), c.center[1] + c.radius * np.sin(a), np.zeros(len(a))]
         pts.append(cam.project(xy @ pose.R.T + pose.t))
-    owner = np.repeat(np.arange(len(pts)), len(a))
-    C, _ = fit_conics_algebraic(np.concatenate(pts), owner, len(pts))
-    edges = [CircleEdge(k, p, Ck, 1.0, 0.0) for k, p, Ck in zip(outer, pts, C, strict=True)]
-    return Detection(cam.width, cam.height, edges=edges)
+    edges = []
+    if pts:
+        owner = np.repeat(np.arange(len(pts)), len(a))
+        C, _ = fit_conics_algebraic(np.concatenate(pts), owner, len(pts))
+        edges = [CircleEdge(k, p, Ck, 1.0, 0.0) for k, p, Ck in zip(outer, pts, C, strict=True)]
+    corners = None
+    if target.board is not None:  # a board's corners, those out of the image NaN
+        P = target.board.corner_points()
+        corners = cam.project(np.c_[P, np.zeros(len(P))] @ pose.R.T + pose.t)
+        out = ~((corners >= 0) & (corners <= (cam.width - 1, cam.height - 1))).all(1)
+        corners[out] = np.nan
+    return Detection(cam.width, cam.height, edges=edges, corners=corners)
 
 
 class Diversity:
@@ -172,9 +180,12 @@ class Diversity:
 
     def __init__(self, spec: SessionSpec) -> None:
         self.collector = ViewCollector(min_views=8, max_views=1000)
+        self.placed = False
         self.random = RandomPoses(spec)
 
     def next(self, state: SessionState) -> Pose:
+        if not self.placed:
+            self.collector.board_points, self.placed = placement_points(state.target), True
         for _ in range(400):
             pose = self.random.next(state)
             ok, _ = self.collector.offer(synthetic_detection(state.target, state.camera, pose))

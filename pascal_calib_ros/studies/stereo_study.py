@@ -45,7 +45,7 @@ from ..geometry.transform import Transform
 from ..sim.render import Pose, features_in_image, render_view
 from ..sim.rig import RigSession, RigSpec, render_rig, stereo_pair
 from ..targets import resolve_target
-from .study import _board_corners, _write
+from .study import _board_corners, write_rows
 
 GOALS = {"rot_err_deg": 0.005, "trans_err_mm": 0.1, "f_err_pct": 0.02, "c_err_px": 0.3}
 QUANTITIES = ("rot_x", "rot_y", "rot_z", "t_x", "t_y", "t_z",
@@ -239,10 +239,10 @@ def stereo_study(out: Path, views: int = 15, seed: int = 1, draws: int = 10, ses
             sys.stderr.write(f"stereo: {draws} noise draws and {draws} new sessions ...\n")
         trust = list(pool.map(_trust_job, jobs))
     per_session = [{k: v for k, v in r.items() if k not in ("signed", "sigma", "est", "err")} for r in acc]
-    _write(per_session, out, "stereo_sessions")
+    write_rows(per_session, out, "stereo_sessions")
     table = accuracy_table(acc)
-    _write(table, out, "stereo_accuracy")
+    write_rows(table, out, "stereo_accuracy")
     ttable = trust_table(trust[:draws], trust[draws:]) if draws else []
     if ttable:
-        _write(ttable, out, "stereo_trust")
+        write_rows(ttable, out, "stereo_trust")
     return table, ttable

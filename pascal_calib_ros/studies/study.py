@@ -89,7 +89,7 @@ def accuracy(out: Path, views: int, seed: int) -> list[dict[str, Any]]:
             except CalibrationError as e:
                 rows.append({"scenario": sc.name, "method": label, "views": 0, "error": str(e)})
         rows.append({"scenario": sc.name, **_opencv_own_board(cam, board, board_imgs)})
-    _write(rows, out, "accuracy")
+    write_rows(rows, out, "accuracy")
     return rows
 
 
@@ -137,7 +137,7 @@ def edge_bias(out: Path, views: int, seed: int) -> list[dict[str, Any]]:
                          "mean_offset_px": float(np.nanmean([v.edge_offset for v in res.views if v.used]))})
         except CalibrationError as e:
             rows.append({"variant": label, "error": str(e)})
-    _write(rows, out, "edge_bias")
+    write_rows(rows, out, "edge_bias")
     return rows
 
 
@@ -185,7 +185,7 @@ def grids(out: Path, views: int, seed: int) -> list[dict[str, Any]]:
         else:
             rows.append({"target": label, "method": "OpenCV findCirclesGrid + calibrateCamera (centroids)",
                          "views": len(ops), "error": "grid found in fewer than 3 views"})
-    _write(rows, out, "grids")
+    write_rows(rows, out, "grids")
     return rows
 
 
@@ -226,11 +226,11 @@ def target_shape(out: Path, views: int, seed: int) -> list[dict[str, Any]]:
                 if "pitch_ratio" in res.shape_std:
                     row["pitch_aspect_corr"] = res.shape_effect["pitch_aspect_correlation"]
             rows.append(row)
-    _write(rows, out, "target_shape")
+    write_rows(rows, out, "target_shape")
     return rows
 
 
-def _write(rows: list[dict[str, Any]], out: Path, name: str) -> None:
+def write_rows(rows: list[dict[str, Any]], out: Path, name: str) -> None:
     out.mkdir(parents=True, exist_ok=True)
     keys: list[str] = []
     for r in rows:
@@ -343,7 +343,7 @@ def _board_corners(img: np.ndarray, board_size: tuple[int, int], subpix: bool) -
 MIN_VIEWS_OPENCV = 3
 
 
-def _cv_flag(name: str) -> int:
+def cv_flag(name: str) -> int:
     """An OpenCV calibration flag: ``cv2.fisheye.NAME`` up to 4.x, ``cv2.NAME`` in 5.0."""
     import cv2
 
@@ -363,8 +363,8 @@ def _opencv_fisheye(obj: np.ndarray, ips: list[np.ndarray], size: tuple[int, int
     import cv2
 
     w, h = size
-    flags = (_cv_flag("CALIB_USE_INTRINSIC_GUESS") | _cv_flag("CALIB_RECOMPUTE_EXTRINSIC")
-             | _cv_flag("CALIB_FIX_SKEW") | _cv_flag("CALIB_CHECK_COND"))
+    flags = (cv_flag("CALIB_USE_INTRINSIC_GUESS") | cv_flag("CALIB_RECOMPUTE_EXTRINSIC")
+             | cv_flag("CALIB_FIX_SKEW") | cv_flag("CALIB_CHECK_COND"))
     criteria = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 100, 1e-10)
     keep = list(range(len(ips)))
     dropped: list[int] = []
@@ -479,7 +479,7 @@ def lenses(out: Path, views: int, seed: int, cases: tuple[str, ...] = ("equidist
         if case.distortion == "equidistant":
             bob, _ = _ours(case, cam, ring_imgs, "ring_grid_a4", "plumb_bob", "pascal-calib, plumb_bob (wrong model)")
             rows.append(bob)
-    _write(rows, out, "lenses")
+    write_rows(rows, out, "lenses")
     return rows
 
 

@@ -73,6 +73,10 @@ def scenarios(views: int) -> tuple[TrustScenario, ...]:
         TrustScenario("checkerboard, 800x600, k1 -0.2, --loss linear", "checkerboard_a4", base, loss="linear"),
         TrustScenario("checkerboard, 640x480, k1 -0.2, JPEG 90", "checkerboard_a4",
                       replace(base, width=640, height=480, jpeg=90)),
+        TrustScenario("ChArUco, 800x600, k1 -0.2, 4 partial views", "charuco_a3",
+                      replace(base, size_range=(0.45, 0.75), partial_views=4)),
+        TrustScenario("AprilGrid, fisheye 190 deg (equidistant), 4 partial views", "aprilgrid_a3",
+                      replace(fisheye.spec, size_range=(0.35, 0.7), partial_views=4), fisheye.distortion),
     )
 
 
@@ -161,7 +165,7 @@ def summarise(sc: TrustScenario, results: dict[str, list[dict[str, Any]]]) -> li
 
 def trust(out: Path, draws: int = 24, views: int = 12, only: str = "") -> list[dict[str, Any]]:
     """The Monte Carlo table (CSV, JSON and Markdown in ``out``)."""
-    from .study import _write, markdown_table
+    from .study import markdown_table, write_rows
 
     rows: list[dict[str, Any]] = []
     for sc in scenarios(views):
@@ -170,5 +174,5 @@ def trust(out: Path, draws: int = 24, views: int = 12, only: str = "") -> list[d
         sys.stderr.write(f"{sc.name}: {draws} draws\n")
         rows += summarise(sc, run_scenario(sc, draws))
         sys.stderr.write(markdown_table(rows[-4:], list(rows[-1])) + "\n")
-    _write(rows, out, "trust")
+    write_rows(rows, out, "trust")
     return rows

@@ -388,3 +388,19 @@ def test_two_wrong_poses_are_both_dropped() -> None:
         kept, dropped = drop_disagreeing_views(Mw, Cn, _closed_form_solver(Mw, Cn, True), HandEyeOptions(), True)
         assert set(dropped) == {2, 5}, dropped
         assert kept == [0, 1, 3, 4, 6, 7]
+
+
+def test_charuco_hand_eye_within_sigma() -> None:
+    """An arm session of a ChArUco (eye in hand): X within 4 sigma of the truth, no symmetric
+    relabelling (the markers' ids fix the board's orientation)."""
+    from pascal_calib_ros.sim.arm import hand_eye_errors
+    from pascal_calib_ros.targets import resolve_target
+
+    board = resolve_target("charuco_a3")
+    s = simulate_arm_session(board, ArmSpec(views=10, width=800, height=600, seed=6, size_range=(0.55, 0.8)))
+    dets = [detect_target(im, board, name=f"v{k}") for k, im in enumerate(s.images[board.name])]
+    assert sum(d.ok for d in dets) >= 9
+    res = calibrate_hand_eye(dets, s.robot_poses, board, "eye_in_hand")
+    t_mm, r_deg, _, _ = hand_eye_errors(res.hand_eye, s.hand_eye)
+    assert t_mm < 4 * float(np.linalg.norm(res.translation_std_mm)) and t_mm < 1.0, (t_mm, res.translation_std_mm)
+    assert r_deg < 4 * float(np.linalg.norm(res.rotation_std_deg)) and r_deg < 0.1, (r_deg, res.rotation_std_deg)

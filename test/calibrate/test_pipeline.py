@@ -188,3 +188,31 @@ def test_projection_uncertainty_at_a_chosen_distance_and_at_infinity(checkerboar
     assert "points at infinity" in projection_line(inf)
     with pytest.raises(ValueError, match="distance"):
         assess(res, distance=-1.0)
+
+
+def test_charuco_with_partial_views_meets_the_accuracy_goal(charuco_session) -> None:
+    """Every view with enough corners counts, the partial ones too; f within 0.05 %, the model
+    within a fraction of a pixel over the whole image, and OpenCV's own path on the same corners
+    (its detectBoard and calibrateCamera) farther off."""
+    cam, imgs, dets = charuco_session
+    target = resolve_target("charuco_a3")
+    partial = [k for k, d in enumerate(dets) if d.name.startswith("partial")]
+    assert sum(dets[k].ok for k in partial) >= 4
+    res = calibrate(dets, target)
+    assert res.method == "zhang" and all(res.views[k].used for k, d in enumerate(dets) if d.ok)
+    fx, fy, pp = _errors(cam, res.K)
+    assert fx < 5e-4 and fy < 5e-4 and pp < 0.8, (fx, fy, pp)
+    ours = model_error(cam, res.camera(), cam.width, cam.height)
+    from pascal_calib_ros.studies.boards_study import opencv_charuco
+
+    theirs = opencv_charuco(target.board, imgs, cam)  # type: ignore[arg-type]
+    assert ours < 0.5 and ours < theirs["model_err_px"], (ours, theirs)
+    assert set(res.std) >= {"fx", "cx", "k1"}
+
+
+def test_aprilgrid_through_a_fisheye_beyond_what_opencv_calibrates(aprilgrid_fisheye_session) -> None:
+    cam, _, dets = aprilgrid_fisheye_session
+    res = calibrate(dets, resolve_target("aprilgrid_a3"), CalibrationOptions(distortion="equidistant"))
+    fx, fy, pp = _errors(cam, res.K)
+    assert res.n_used >= 10 and fx < 8e-4 and fy < 8e-4 and pp < 0.5, (res.n_used, fx, fy, pp)
+    assert model_error(cam, res.camera(), cam.width, cam.height, mask=res.observed_field()) < 0.3

@@ -110,7 +110,7 @@ def _trimmed(target: Target, keep: float = 0.4, margin: float = 0.3) -> Target:
     assert b is not None
     t = _TrimmedBoard(b.origin, b.squares, b.square_size, b.first_square, keep=keep)
     return replace(target, sheet=(t.extent[2] + margin * b.square_size, t.extent[3] + margin * b.square_size),
-                   checkerboards=(t,))
+                   boards=(t,))
 
 
 def test_corners_at_800x600_beat_the_full_frame_search(plain_board: Target) -> None:

@@ -3,6 +3,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+import pytest
 from matplotlib.path import Path as MplPath
 from scipy.spatial import ConvexHull
 
@@ -82,6 +83,26 @@ def test_printable_targets_are_at_exact_scale(tmp_path: Path) -> None:
         assert abs(box[2] / 72 * 25.4 - 1000 * t.sheet[0]) < 0.01 and abs(box[3] / 72 * 25.4 - 1000 * t.sheet[1]) < 0.01
         svg = write_printable(t, tmp_path / f"{name}.svg").read_text()
         assert f"{t.name}: sheet" in svg or "50 mm" in svg
+
+
+@pytest.mark.parametrize("name", ["charuco_a3", "aprilgrid_a3"])
+def test_a_printed_marker_board_reads_back_with_its_ids_where_the_layout_puts_them(tmp_path: Path, name: str) -> None:
+    """The PNG page (300 dpi) of a ChArUco or an AprilGrid: every marker found by OpenCV's aruco with
+    the id the layout gives it, within 0.5 mm of where the layout puts its corners."""
+    import cv2
+
+    from pascal_calib_ros.detect.marker_boards import detect_markers
+
+    t = resolve_target(name)
+    img = cv2.imread(str(write_printable(t, tmp_path / f"{name}.png")), cv2.IMREAD_GRAYSCALE)
+    assert t.board is not None and img.shape[1] == pytest.approx(t.sheet[0] / 0.0254 * 300, abs=2)
+    found = detect_markers(img, t.board)  # type: ignore[arg-type]
+    layout = t.board.marker_corners()  # type: ignore[union-attr]
+    assert sorted(found.ids.tolist()) == sorted(layout)
+    px_per_m = img.shape[1] / t.sheet[0]
+    err = [np.abs(c - layout[int(k)] * px_per_m).max() / px_per_m
+           for k, c in zip(found.ids, found.corners, strict=True)]
+    assert max(err) < 5e-4
 
 
 def test_report_of_an_unrefined_calibration_has_every_page(tmp_path: Path, ring_target: Target, ring_session) -> None:

@@ -7,6 +7,8 @@ from __future__ import annotations
 import json
 import signal
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -231,6 +233,27 @@ def test_invalid_parameters_refuse_to_start(tmp_path: Path) -> None:
     assert "no image files" in rep.log()
 
 
+@contextmanager
+def _replayed(tmp_path: Path, imgs: Path, cal_params: dict, min_accepted: int) -> Iterator[tuple[RosClient, Any]]:
+    """The calibration node fed the folder ``imgs`` by the replay node until it has stored at least
+    ``min_accepted`` views; the client and the node's process, stopped (cleanly) afterwards."""
+    dom = next_domain_id()
+    cal = NodeProcess("calibration_node", cal_params, dom, tmp_path / "cal.log")
+    rep = NodeProcess("replay_node", {"source": str(imgs), "rate": 5.0, "wait_for_subscribers": 1,
+                                      "exit_when_done": True}, dom, tmp_path / "rep.log")
+    client = RosClient(dom)
+    try:
+        status = status_subscription(client)
+        assert client.spin_until(lambda: rep.proc.poll() is not None, 60), rep.log()
+        assert client.spin_until(lambda: int(latest_status(status).get("views_accepted", 0)) >= min_accepted, 10), \
+            (str(latest_status(status)), cal.log())
+        yield client, cal
+    finally:
+        client.close()
+        rep.stop()
+        assert cal.stop() == 0, cal.log()
+
+
 def test_grid_target_with_estimated_shape(tmp_path: Path) -> None:
     """A ring grid printed on a bent sheet: the node collects grid views, calibrates with the
     estimated warp and writes it to calibration.json; a ring target with a shape is refused."""
@@ -238,18 +261,9 @@ def test_grid_target_with_estimated_shape(tmp_path: Path) -> None:
     spec = SessionSpec(width=800, height=600, focal=600, views=10, k1=-0.2, seed=5, size_range=(0.5, 0.85),
                        warp_x=0.001)
     render_session(resolve_target("ring_grid_a4"), spec, imgs)
-    dom = next_domain_id()
     out = tmp_path / "out"
-    cal = NodeProcess("calibration_node", {"target": "ring_grid_a4", "target_shape": "warp", "min_views": 6,
-                                           "min_view_distance": 0.01, "output_dir": str(out)},
-                      dom, tmp_path / "cal.log")
-    rep = NodeProcess("replay_node", {"source": str(imgs), "rate": 5.0, "wait_for_subscribers": 1,
-                                      "exit_when_done": True}, dom, tmp_path / "rep.log")
-    client = RosClient(dom)
-    try:
-        status = status_subscription(client)
-        assert client.spin_until(lambda: rep.proc.poll() is not None, 60), rep.log()
-        assert client.spin_until(lambda: int(latest_status(status).get("views_accepted", 0)) >= 8, 10), cal.log()
+    with _replayed(tmp_path, imgs, {"target": "ring_grid_a4", "target_shape": "warp", "min_views": 6,
+                                    "min_view_distance": 0.01, "output_dir": str(out)}, 8) as (client, cal):
         r = client.call_trigger("/pascal_calib/calibrate")
         assert r.success, r.message
         assert "method=grid" in r.message and "target shape matters" in r.message
@@ -258,11 +272,8 @@ def test_grid_target_with_estimated_shape(tmp_path: Path) -> None:
         _check_k(got[-1].k, _truth(imgs))
         doc = json.loads((out / "calibration.json").read_text())
         assert abs(doc["target_shape"]["warp_x"] - 0.001) < 1e-4, doc["target_shape"]
-    finally:
-        client.close()
-        rep.stop()
-        assert cal.stop() == 0, cal.log()
-    bad = NodeProcess("calibration_node", {"target": "ring_a4", "target_shape": "warp"}, dom, tmp_path / "bad.log")
+    bad = NodeProcess("calibration_node", {"target": "ring_a4", "target_shape": "warp"}, next_domain_id(),
+                      tmp_path / "bad.log")
     assert bad.wait(30) == 2
     assert "target_shape needs a grid or checkerboard target" in bad.log()
 
@@ -486,3 +497,22 @@ def test_detections_show_footprints_coverage_bars_and_state(tmp_path: Path, sess
             if c < 0.95:
                 assert np.array_equal(got[ym, x1 - 2], BAR_EMPTY_BGR), axis
     assert {f"coverage_{a}" for a in AXES} <= set(kv)
+
+
+def test_charuco_board_from_its_own_yaml_with_partial_views(tmp_path: Path) -> None:
+    """A user's ChArUco described in a YAML file (``-p target:=board.yaml``): whole and partial
+    views are collected and calibrated; the CameraInfo close to the truth."""
+    board = tmp_path / "board.yaml"
+    board.write_text((Path(__file__).parents[2] / "config" / "targets" / "charuco_a3.yaml").read_text()
+                     .replace("name: charuco_a3", "name: my_board"))
+    imgs = tmp_path / "imgs"
+    spec = SessionSpec(width=800, height=600, views=8, partial_views=4, k1=-0.2, seed=3, size_range=(0.5, 0.8))
+    render_session(resolve_target(str(board)), spec, imgs)
+    with _replayed(tmp_path, imgs, {"target": str(board), "min_views": 6, "min_view_distance": 0.01}, 9) as (client,
+                                                                                                              cal):
+        r = client.call_trigger("/pascal_calib/calibrate")
+        assert r.success, r.message
+        assert "method=zhang" in r.message
+        got = camera_info_subscription(client)
+        assert client.spin_until(lambda: bool(got), 10), cal.log()
+        _check_k(got[-1].k, _truth(imgs), rel=5e-4, pp_px=1.0)

@@ -10,6 +10,7 @@ from pascal_calib_ros.session.overlay import (
     DETECTED_BGR,
     FOOTPRINT_ALPHA,
     FOOTPRINT_BGR,
+    MARKER_BGR,
     PANEL_BGR,
     REJECTED_BGR,
     WAIT_BGR,
@@ -120,6 +121,17 @@ def test_verdict_and_detection_colours() -> None:
     # the caller's verdict and colour win
     stored = _draw(img, det=_circle_detection(400, 300, 100), verdict="stored: view 3", verdict_ok=True)
     assert _has(stored[:60, :200], DETECTED_BGR) and not np.array_equal(stored, ok)
+
+
+def test_a_marker_boards_markers_are_outlined_with_their_ids() -> None:
+    img = np.full((H, W), 128, np.uint8)
+    quad = np.array([[300.0, 200.0], [380.0, 200.0], [380.0, 280.0], [300.0, 280.0]])
+    det = Detection(W, H, corners=np.array([[290.0, 190.0], [np.nan, np.nan]]), marker_ids=np.array([17]),
+                    marker_corners=quad[None])
+    out = _draw(img, det=det)
+    assert np.array_equal(out[200, 340], MARKER_BGR) and np.array_equal(out[240, 380], MARKER_BGR)  # the outline
+    assert _has(out[225:255, 320:365], MARKER_BGR)  # the id inside
+    assert not _has(_draw(img, det=Detection(W, H, corners=det.corners)), MARKER_BGR)
 
 
 @pytest.mark.parametrize("top", [4095, 65535])

@@ -89,7 +89,7 @@ def _setup(views: list[ViewData], start: ChainStart, opt: CalibrationOptions, he
     frame = None
     if shape:
         pts = [np.array([c.center for c in target.circles]).reshape(-1, 2)]
-        pts += [b.corner_points() for b in target.checkerboards]
+        pts += [b.corner_points() for b in target.boards]
         frame = shape_frame_of(np.concatenate(pts) - np.array(origin))
     cal = start.calibration
     K0, D0 = cal.K, np.asarray(cal.D, float).reshape(-1)

@@ -28,6 +28,8 @@ def target_symmetries(target: Target, origin: tuple[float, float]) -> list[Trans
     """The rotations of the sheet (by 90, 180, 270 degrees about the features' centre) that map
     every circle (centre, radius, dark side) and every checkerboard corner and square colour onto
     the target again, as transforms of the refinement's local frame; identity first."""
+    if len(target.checkerboards) < len(target.boards):
+        return [Transform.identity()]  # a marker board's ids fix the labelling
     pts = [np.array([c.center for c in target.circles]).reshape(-1, 2)]
     for b in target.checkerboards:
         pts.append(b.corner_points())

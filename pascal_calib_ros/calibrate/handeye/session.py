@@ -162,7 +162,7 @@ def calibrate_hand_eye_warm(dets: list[Detection], robot_poses: Sequence[Transfo
         raise HandEyeError(f"intrinsic calibration failed: {e}") from None
     reports = [replace(v) for v in cal.views]
     warnings = list(cal.warnings)
-    axisymmetric = len({c.center for c in target.circles}) == 1 and not target.checkerboards
+    axisymmetric = len({c.center for c in target.circles}) == 1 and not target.boards
     observed = dict(zip(intrinsic.first.idx, intrinsic.first.res.first_views, strict=True)) if intrinsic else None
     views, C, idx = posed_views(dets, reports, target, cal.camera(), options, axisymmetric, refined_poses(cal),
                                 observed)

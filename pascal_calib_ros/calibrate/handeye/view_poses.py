@@ -27,10 +27,10 @@ def camera_pose(det: Detection, target: Target, cam: Camera, origin: tuple[float
     if det.edges:
         p = pose_with_camera(det, target, cam, origin)
         return Transform.from_rt(p.R, p.t)
-    if det.corners is None or target.checkerboard is None:
+    if det.corners is None or target.board is None:
         raise CircularPointError("no circles and no checkerboard corners")
     xy = cam.undistort_pixels(det.corners)
-    obj = target.checkerboard.corner_points() - np.array(origin)
+    obj = target.board.corner_points() - np.array(origin)
     ok = np.all(np.isfinite(xy), 1)
     if ok.sum() < 6:
         raise CircularPointError("fewer than 6 corners with a ray")
