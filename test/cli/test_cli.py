@@ -8,6 +8,7 @@ import yaml
 from cli_harness import run
 
 from pascal_calib_ros.sim.ground_truth import compare
+from pascal_calib_ros.studies.bench import shipped_targets
 
 
 @pytest.fixture(scope="module")
@@ -86,7 +87,10 @@ def test_bench_json_shape() -> None:
     assert [c["views"] for c in data["calibrate"]] == [3, 10, 20, 20]
     # every shipped target at every size, with its ratio to a Canny pass over the same frames
     rows = data["detect_targets"]
-    assert len(rows) == 5 * 3 and all(r["found"] == r["views"] for r in rows), rows
+    assert len(rows) == len(shipped_targets()) * 3 and all(r["found"] == r["views"] for r in rows), rows
+    # the marker boards against OpenCV's own detection of the same frames
+    assert {r["target"] for r in data["marker_boards"]} == {"charuco_a3", "aprilgrid_a3"}
+    assert all(r["detect_ms"] > 0 and 0 < r["ratio"] <= r["max_ratio"] for r in data["marker_boards"])
     assert all(r["canny_ms"] > 0 and 0 < r["ratio"] <= r["max_ratio"] for r in rows)
     assert data["first_detection"][0]["seconds"] > 0
 
