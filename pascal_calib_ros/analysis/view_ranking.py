@@ -9,7 +9,7 @@ of those exactly (every point the pipeline would keep, the full grid).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -197,14 +197,17 @@ def distinct_from_all(a: list[Placement], b: list[Placement], width: int, height
 def suggest_views(res: RefineResult, target: Target, width: int, height: int, n: int = 5,
                   grid: CandidateGrid = CandidateGrid(),  # noqa: B008 (frozen dataclass)
                   rules: Feasibility | None = None,
-                  options: CalibrationOptions = CalibrationOptions()) -> ViewSuggestions:  # noqa: B008
-    """The ``n`` best next views for a person holding the target (module docstring)."""
+                  options: CalibrationOptions = CalibrationOptions(),  # noqa: B008
+                  avoid: Sequence[Placement] = ()) -> ViewSuggestions:
+    """The ``n`` best next views for a person holding the target (module docstring). ``avoid``:
+    placements whose views the detector refused; no candidate in their neighbourhood (not
+    :func:`distinct` from one) is offered, as for a captured view (:func:`unseen`)."""
     pred = ViewPredictor(Linearisation.of_refinement(res), width, height)
     rules = rules or default_feasibility(target, width, view_distances(target, res))
     placements = candidate_placements(pred.camera_sized, grid, target) + partial_placements(pred.camera_sized, target)
     cands = feasible_candidates(target, pred.camera_sized, placements, rules)
     assert res.x is not None
     R, t = res.view_poses_of(res.x)
-    cands = unseen(cands, captured_placements(target, pred.camera_sized, R, t), width, height)
+    cands = unseen(cands, captured_placements(target, pred.camera_sized, R, t) + list(avoid), width, height)
     ranked = rank_candidates(pred, target, cands, n, options)
     return ViewSuggestions(pred.sigma_now(), pred.distance_now, ranked, len(cands), pred.camera_sized)

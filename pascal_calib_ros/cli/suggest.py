@@ -1,13 +1,24 @@
 """``pascal-calib suggest``: the next views to take (NEXT.yaml) until the projection uncertainty over
 the whole image reaches a goal; with ``--poses``, tool poses for a robot arm (the work:
-:mod:`..workflows.suggest`). Exit codes: 0, or 2 with the reason on bad input."""
+:mod:`..workflows.suggest`). Exit codes: 0, or 2 with the reason on bad input.
+
+Refused images are listed with the detector's reason. ``--previous NEXT.yaml`` (the previous call's
+output) carries its ``avoided`` placements on, and when the newest image (latest modification time)
+was refused, its first suggestion joins them: the view taken there could not be measured, so
+nothing in its neighbourhood is suggested again."""
 
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
+from typing import Any
 
+import yaml
+
+from ..analysis.candidates import Placement
 from ..calibrate.handeye.options import HAND_EYE_MODES
 from ..calibrate.problem import DISTORTION_MODELS
+from ..detect.detection import Detection
 from ..geometry.transform import Transform
 from ..io.hand_eye_yaml import PosesYamlError, read_poses_yaml
 from ..io.images import expand_image_args
@@ -16,12 +27,43 @@ from ..workflows.detection import detect_files, detection_params
 from ..workflows.suggest import (
     SuggestError,
     SuggestOptions,
+    placement_of_doc,
     suggest_for_arm,
     suggest_for_person,
     summary,
     write_next_yaml,
 )
 from .common import EXIT_INPUT, EXIT_OK, error, progress
+
+
+def read_previous(path: str) -> dict[str, Any]:
+    """The previous call's NEXT.yaml (a :class:`SuggestError` when it cannot be read)."""
+    try:
+        doc = yaml.safe_load(Path(path).read_text())
+        if not isinstance(doc, dict) or not isinstance(doc.get("suggestions", []), list):
+            raise ValueError("not a NEXT.yaml document")
+        for s in [*doc.get("avoided", []), *[s["placement"] for s in doc.get("suggestions", [])]]:
+            placement_of_doc(s)
+    except (OSError, ValueError, TypeError, KeyError, yaml.YAMLError) as e:
+        raise SuggestError(f"--previous {path}: cannot read it ({type(e).__name__}: {e}); give the NEXT.yaml "
+                           "the previous call wrote") from None
+    return doc
+
+
+def avoided_placements(previous: dict[str, Any] | None, paths: list[Path], dets: list[Detection]
+                       ) -> tuple[list[Placement], str]:
+    """The placements to avoid (module docstring) and a line saying what was added ("" if nothing)."""
+    if previous is None:
+        return [], ""
+    avoid = [placement_of_doc(p) for p in previous.get("avoided", [])]
+    newest = max(range(len(paths)), key=lambda k: (paths[k].stat().st_mtime, k))
+    if dets[newest].ok or not previous.get("suggestions"):
+        return avoid, ""
+    p = previous["suggestions"][0]["placement"]
+    avoid.append(placement_of_doc(p))
+    return avoid, (f"the newest image {paths[newest].name} was refused ({dets[newest].reason}): the previous "
+                   f"suggestion 1 (centre at pixel ({p['pixel'][0]:.0f}, {p['pixel'][1]:.0f}), {p['distance_m']:.2f} "
+                   f"m, tilted {p['tilt_deg']:.0f} deg) and its neighbourhood are no longer suggested")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -46,17 +88,21 @@ def run(args: argparse.Namespace) -> int:
             if not any(p.name in poses for p in paths):
                 raise SuggestError(f"no image has a pose in {args.poses} (images are matched by file name, e.g. "
                                    f"{paths[0].name})")
+        previous = read_previous(args.previous) if args.previous else None
         dets = detect_files(paths, target, detection_params(opt.distortion), progress=progress())
+        avoid, note = avoided_placements(previous, paths, dets)
         if args.poses:
-            doc = suggest_for_arm(dets, [poses.get(p.name) for p in paths], target, opt, frames)
+            doc = suggest_for_arm(dets, [poses.get(p.name) for p in paths], target, opt, frames, avoid)
         else:
-            doc = suggest_for_person(dets, target, opt)
+            doc = suggest_for_person(dets, target, opt, avoid)
     except (SuggestError, TargetError, PosesYamlError) as e:
         error(str(e))
         return EXIT_INPUT
     for d in dets:
         if not d.ok:
             print(f"  rejected  {d.name}  {d.reason}")
+    if note:
+        print(note)
     print(summary(doc))
     print(f"wrote {write_next_yaml(args.output, doc)}")
     return EXIT_OK
@@ -81,6 +127,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="with --poses: done also needs the hand-eye rotation sigma at most this (deg)")
     s.add_argument("--goal-mm", type=float, default=SuggestOptions.goal_mm,
                    help="with --poses: done also needs the hand-eye translation sigma at most this (mm)")
+    s.add_argument("--previous", metavar="NEXT.yaml",
+                   help="the previous call's NEXT.yaml: its avoided placements are kept, and when the newest image "
+                        "(latest modification time) was refused, its first suggestion is avoided too")
     s.add_argument("-o", "--output", required=True, help="NEXT.yaml path")
     s.add_argument("images", nargs="+", help="image files or folders")
     s.set_defaults(func=run)

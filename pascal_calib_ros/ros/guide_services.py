@@ -16,14 +16,16 @@ from geometry_msgs.msg import Pose, PoseArray, PoseStamped
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from std_srvs.srv import Trigger
 
+from ..analysis.candidates import Placement
 from ..calibrate.options import CalibrationOptions
 from ..detect.detection import Detection
 from ..errors import PascalCalibError
 from ..geometry.camera import Camera
 from ..io.calibration_files import read_calibration_file
+from ..session.arm_session import MOVING, NO_POSE
 from ..session.guide_overlay import draw_guide
 from ..session.guided_live import GuidedLive, GuideView
-from ..workflows.suggest import SuggestOptions, WarmArmSuggestions, suggest_for_person
+from ..workflows.suggest import SuggestOptions, WarmArmSuggestions, placement_of_doc, suggest_for_person
 from .guard import guarded_service
 
 if TYPE_CHECKING:
@@ -102,21 +104,50 @@ class NodeGuide:
             opts = CalibrationOptions(method=node.method, distortion=str(node.p("distortion_model")),
                                       zero_skew=bool(node.p("zero_skew")))
             self.live = GuidedLive(node.target, opts, float(node.p("goal_sigma_px")), int(node.p("suggest_count")),
-                                   camera_guess=previous_camera(node))
+                                   camera_guess=previous_camera(node), watch_refusals=node.p("collect") == "auto")
         self.arm = WarmArmSuggestions()  # ~/suggest for an arm: each call starts from the previous call's estimate
         self.pub_poses = node.create_publisher(PoseArray, "~/suggested_tool_poses", latched)
         self.pub_pose = node.create_publisher(PoseStamped, "~/suggested_tool_pose", latched)
         self.last_seconds = float("nan")
+        self._refusals = self._capture_refusals()  # refused captures seen (count, rejections)
+        self._offered: Placement | None = None  # the last ~/suggest's first suggestion
+        self._offered_at = (0, 0)  # (refused captures, stored views) when it was offered
+        self.avoid: list[Placement] = []  # ~/suggest's refused suggestions (until ~/reset)
+        self.suggest_refused = ""
         node.create_service(Trigger, "~/suggest", guarded_service(node, "~/suggest", self._srv_suggest),
                             callback_group=MutuallyExclusiveCallbackGroup())
         node.create_service(Trigger, "~/skip_suggestion", guarded_service(node, "~/skip_suggestion", self._srv_skip),
                             callback_group=services)
+
+    # -- refused captures ---------------------------------------------------------------------
+    def _capture_refusals(self) -> tuple[int, int]:
+        """(refused captures, frames rejected) of the session so far."""
+        session = self.node.session
+        with session.lock:
+            rejected = sum(session.collector.rejected.values())
+        return session.captures.refused, rejected
+
+    def refused_capture(self) -> str:
+        """The detector's reason when a capture was refused since the last look ("" if none was, or
+        it was refused for motion, a missing pose or a timeout)."""
+        now = self._capture_refusals()
+        before, self._refusals = self._refusals, now
+        if now[0] <= before[0] or now[1] <= before[1]:
+            return ""
+        with self.node.session.lock:
+            why = self.node.session.collector.last_rejection
+        return "" if not why or why.startswith((MOVING, NO_POSE)) else why
 
     # -- the person guide's hooks (the detector thread) ------------------------------------
     def examine(self, det: Detection) -> tuple[bool, str] | None:
         """The guide's verdict for :meth:`..session.live.LiveSession.examine` (None: no guide)."""
         if self.live is None:
             return None
+        why = self.refused_capture()
+        if why:
+            line = self.live.refuse(why)
+            if line:
+                self.node.get_logger().warning(f"guide: the captured view was {line}")
         v = self.live.examine(det)
         return v.store, v.line
 
@@ -132,6 +163,8 @@ class NodeGuide:
 
     def reset(self) -> None:
         self.arm.reset()
+        self.avoid, self._offered, self.suggest_refused = [], None, ""
+        self._refusals = self._capture_refusals()  # the session was cleared first: refusals before are not held
         if self.live is not None:
             self.live.reset()
 
@@ -150,7 +183,10 @@ class NodeGuide:
                    "guide_camera_T_target": _vec([*v.pose.translation, *v.pose.quat], 6) if v.pose else "",
                    "guide_match": round(v.overlap, 3),
                    "guide_matched": v.matched, "guide_hint": v.hint, "guide_error": v.error,
-                   "guide_update_s": round(v.update_seconds, 3)}
+                   "guide_update_s": round(v.update_seconds, 3), "guide_refused": v.refused,
+                   "guide_avoided": v.avoided}
+        if self.avoid:
+            out["suggest_avoided"], out["suggest_refused"] = len(self.avoid), self.suggest_refused
         if np.isfinite(self.last_seconds):
             out["suggest_s"] = round(self.last_seconds, 3)
         return out
@@ -186,13 +222,36 @@ class NodeGuide:
                               reach=float(p("suggest_reach")), max_turn=float(p("suggest_max_turn")),
                               goal_deg=float(p("goal_hand_eye_deg")), goal_mm=float(p("goal_hand_eye_mm")))
 
+    def _avoid_refused(self, n_views: int) -> str:
+        """When the view taken at the last ``~/suggest``'s first suggestion was refused (a refused
+        capture since, no view stored): avoid that suggestion; returns the answer's note."""
+        refused = self.node.session.captures.refused
+        if self._offered is None or refused <= self._offered_at[0] or n_views != self._offered_at[1]:
+            return ""
+        with self.node.session.lock:
+            why = self.node.session.collector.last_rejection or "refused"
+        p, self._offered = self._offered, None
+        self.avoid.append(p)
+        self.suggest_refused = (f"the view at the last suggestion (centre at ({p.pixel[0]:.0f}, {p.pixel[1]:.0f}) px, "
+                                f"{p.distance:.2f} m, tilt {p.tilt_deg:.0f} deg) was refused ({why}): its "
+                                f"neighbourhood is not suggested again ({len(self.avoid)} avoided)")
+        return f"; {self.suggest_refused}"
+
+    def _offer(self, doc: dict[str, Any], n_views: int) -> dict[str, Any]:
+        """Remember the first suggestion of ``doc`` (what a refused capture is held against)."""
+        sugg = doc["suggestions"]
+        self._offered = placement_of_doc(sugg[0]["placement"]) if sugg and not doc["done"] else None
+        self._offered_at = (self.node.session.captures.refused, n_views)
+        return doc
+
     def suggest(self) -> str:
         """The answer of ``~/suggest``; a :class:`~..errors.PascalCalibError` says why there is none."""
         node, opt = self.node, self.options()
         snap = node.session.snapshot()
+        note = self._avoid_refused(len(snap.views))
         if not opt.mode:
-            doc = suggest_for_person(snap.views, node.target, opt)
-            return person_answer(doc)
+            doc = self._offer(suggest_for_person(snap.views, node.target, opt, self.avoid), len(snap.views))
+            return person_answer(doc) + note
         if node.robot is None:
             raise PascalCalibError("hand_eye is set but there are no robot poses: set robot_pose_topic")
         if sum(p is not None for p in snap.robot_poses) == 0:
@@ -200,7 +259,8 @@ class NodeGuide:
                                    f"on {node.robot.resolved}: {node.robot.poses.received}); capture views at "
                                    "three or more arm poses first")
         base, tool = str(node.p("robot_base_frame")), str(node.p("robot_tool_frame"))
-        doc = self.arm.suggest(snap.views, snap.robot_poses, node.target, opt, (base, tool))
+        doc = self._offer(self.arm.suggest(snap.views, snap.robot_poses, node.target, opt, (base, tool), self.avoid),
+                          len(snap.views))
         if not doc["suggestions"] and not doc["done"]:
             raise PascalCalibError(f"no candidate view inside the trust region (suggest_reach {opt.reach:g} m, "
                                    f"suggest_max_turn {opt.max_turn:g} deg around the visited tool poses); widen it"
@@ -211,4 +271,4 @@ class NodeGuide:
             arr = PoseArray(header=header, poses=[_pose_msg(s["tool"]) for s in doc["suggestions"]])
             self.pub_poses.publish(arr)
             self.pub_pose.publish(PoseStamped(header=header, pose=arr.poses[0]))
-        return arm_answer(doc, node.resolve_topic_name("~/suggested_tool_poses"))
+        return arm_answer(doc, node.resolve_topic_name("~/suggested_tool_poses")) + note

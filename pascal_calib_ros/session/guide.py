@@ -8,7 +8,11 @@ it, and whether the accuracy asked for is reached. The node holds one :class:`Gu
   target's outline as detected and as suggested is at least :data:`MATCH_OVERLAP` (0.85, the
   threshold of pose_calib, Rojtberg & Kuijper 2018); a hint line says what to change first.
 - **Done** is decided by :meth:`GuideState.update` on the real projection uncertainty of the
-  recalibrated views, never on a prediction.
+  recalibrated views, never on a prediction; a view the detector refused is never among them.
+- A suggestion whose view the detector refused (:meth:`GuideState.refuse`) is avoided for the rest
+  of the session: its placement joins :attr:`GuideState.avoided`, no suggestion in its
+  neighbourhood (not :func:`..analysis.view_ranking.distinct` from it: the same test that keeps a
+  captured view from being suggested again) is offered, and the next one is.
 """
 
 from __future__ import annotations
@@ -18,8 +22,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from ..analysis.candidates import bootstrap_placements, outline_points, place
-from ..analysis.view_ranking import RankedView, suggest_views
+from ..analysis.candidates import Placement, bootstrap_placements, outline_points, place
+from ..analysis.view_ranking import RankedView, distinct_from_all, suggest_views
 from ..calibrate.refine import RefineResult
 from ..detect.detection import Detection
 from ..geometry.camera import Camera
@@ -111,6 +115,8 @@ class GuideState:
     index: int = 0
     sigma_px: float = float("nan")  # worst projection sigma over the image of the captured views (real)
     camera: Camera | None = None
+    avoided: list[Placement] = field(default_factory=list)  # suggestions whose views the detector refused
+    refusals: list[str] = field(default_factory=list)  # one line per refused suggestion
 
     def __post_init__(self) -> None:
         if not self.suggestions:
@@ -131,21 +137,46 @@ class GuideState:
             self.index = (self.index + 1) % len(self.suggestions)
         return self.current
 
+    def _allowed(self, views: list[RankedView]) -> list[RankedView]:
+        """``views`` without those in the neighbourhood of an avoided placement."""
+        if not views or not self.avoided:
+            return views
+        w, h = self.camera_guess.width, self.camera_guess.height
+        keep = distinct_from_all([v.placement for v in views], self.avoided, w, h)
+        return [v for v, k in zip(views, keep, strict=True) if k]
+
     def _bootstrap(self) -> None:
         cam = self.camera_guess
-        self.suggestions = [RankedView(place(self.target, cam, p), p, float("nan"), np.zeros((0, 0)))
-                            for p in bootstrap_placements(cam, self.target)]
+        self.suggestions = self._allowed([RankedView(place(self.target, cam, p), p, float("nan"), np.zeros((0, 0)))
+                                          for p in bootstrap_placements(cam, self.target)])
         self.index = 0
+
+    def refuse(self, reason: str) -> str:
+        """The view taken at the current suggestion was refused by the detector (``reason``): avoid
+        its neighbourhood from now on and move on to the next suggestion. Returns the line that says
+        so ("" without a suggestion). The list may run empty: the next :meth:`update` ranks again."""
+        s = self.current
+        if s is None:
+            return ""
+        p = s.placement
+        line = (f"refused ({reason}) at suggestion centre ({p.pixel[0]:.0f}, {p.pixel[1]:.0f}) px, "
+                f"{p.distance:.2f} m, tilt {p.tilt_deg:.0f} deg: its neighbourhood is not suggested again")
+        self.avoided.append(p)
+        self.refusals.append(line)
+        before = self.index
+        self.suggestions = self._allowed(self.suggestions)
+        self.index = min(before, len(self.suggestions) - 1) if self.suggestions else 0
+        return line
 
     def update(self, refinement: RefineResult | None, width: int, height: int, n_views: int) -> None:
         """After a view was captured: with a calibration (``refinement``, of ``n_views`` >= 3
         views) the real sigma and the ranked suggestions; without, the next bootstrap view."""
         if refinement is None or refinement.covariance is None or n_views < 3:
             self._bootstrap()
-            self.index = min(n_views, len(self.suggestions) - 1)
+            self.index = max(0, min(n_views, len(self.suggestions) - 1))
             self.sigma_px = float("nan")
             return
-        s = suggest_views(refinement, self.target, width, height, self.n)
+        s = suggest_views(refinement, self.target, width, height, self.n, avoid=self.avoided)
         self.sigma_px, self.camera, self.suggestions, self.index = s.sigma_px, s.camera, s.suggestions, 0
 
     def outline(self) -> np.ndarray:

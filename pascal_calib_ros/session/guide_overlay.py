@@ -1,7 +1,8 @@
 """The guide's drawing on the ``~/detections`` picture (:func:`.overlay.draw_live_overlay`'s output):
 the suggested target's outline (cyan; green once the live target matches it), and at the bottom of
 the frame three lines: the match score with one hint (``match 0.62: move the target left``), the
-projection sigma now against the goal, and ``DONE`` (or ``computing the next view...``). Plain
+projection sigma now against the goal, and ``DONE`` (or ``computing the next view...``); after a
+view refused at a suggestion, the refusal with its reason until the next view is stored. Plain
 numpy and OpenCV: no ROS; draws on the picture it is given and returns it.
 """
 
@@ -30,6 +31,8 @@ def guide_lines(v: GuideView) -> list[tuple[str, tuple[int, int, int]]]:
     sigma = "none yet (3 views first)" if not np.isfinite(v.sigma_px) else f"{v.sigma_px:.3f} px"
     second = (f"sigma now {sigma}, goal {v.goal_sigma_px:g} px", BAR_FULL_BGR if v.done else TEXT_BGR)
     lines = [first, second]
+    if v.refused and not v.done:
+        lines.append((v.refused, WAIT_BGR))
     if v.suggestion and not v.done:
         lines.append((f"next view {v.suggestion}", TEXT_BGR))
     return lines

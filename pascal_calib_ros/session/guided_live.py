@@ -10,8 +10,16 @@ calibration of the stored views and the ranking of the next ones) runs on anothe
 - :meth:`GuidedLive.stored` is called after a view was stored: the update then runs on a worker
   thread (:meth:`GuidedLive.update_now` is its body), frames keep flowing, and nothing is stored
   until the next suggestion is there (the picture says "computing the next view...").
-- Done comes from :attr:`GuideState.done`: the real projection sigma of the recalibrated views,
-  never a prediction. Once done, no more views are stored by the guide (``~/capture`` still can).
+- Done comes from :attr:`GuideState.done`: the real projection sigma of the recalibrated usable
+  views (a refused detection is never counted), never a prediction. Once done, no more views are
+  stored by the guide (``~/capture`` still can).
+- A view refused by the detector at a suggestion (:meth:`GuidedLive.refuse`) makes the guide avoid
+  that suggestion's neighbourhood until :meth:`GuidedLive.reset` (:meth:`.guide.GuideState.refuse`)
+  and offer the next one. The node calls it for a refused ``~/capture`` (``collect:=on_capture``);
+  with ``watch_refusals`` (``collect:=auto``, a person) :meth:`GuidedLive.examine` calls it itself
+  when, after a usable frame near the suggestion (overlap >= :data:`NEAR_OVERLAP`), the detector
+  refuses :data:`REFUSED_FRAMES` frames in a row: the person holds the target there and it cannot
+  be measured.
 
 The first suggestions (bootstrap, fewer than 3 views) are drawn with ``camera_guess``, or with a
 nominal camera (focal length = the image width, principal point at the centre) made from the
@@ -39,6 +47,8 @@ from ..targets import Target
 from .guide import GuideState, Match
 
 COMPUTING = "computing the next view..."
+NEAR_OVERLAP = 0.5  # a usable frame this close to the suggestion: the person is there or nearly
+REFUSED_FRAMES = 15  # then this many refused frames in a row: the view at the suggestion is refused
 
 
 @dataclass(frozen=True)
@@ -69,6 +79,8 @@ class GuideView:
     count: int
     error: str
     update_seconds: float
+    refused: str = ""  # the last refusal of a suggestion's view, until the next view is stored
+    avoided: int = 0  # suggestions avoided in this session (their views were refused)
 
 
 def describe(state: GuideState) -> str:
@@ -95,7 +107,7 @@ class GuidedLive:
     """The guide of a live session (module docstring); every method may be called from any thread."""
 
     def __init__(self, target: Target, options: CalibrationOptions, goal_sigma_px: float = 0.1, n: int = 5,
-                 camera_guess: Camera | None = None) -> None:
+                 camera_guess: Camera | None = None, watch_refusals: bool = False) -> None:
         if not (np.isfinite(goal_sigma_px) and goal_sigma_px > 0):
             raise ValueError(f"goal_sigma_px {goal_sigma_px}: give a finite value > 0 (px)")
         self.target, self.options, self.n = target, options, int(n)
@@ -111,6 +123,11 @@ class GuidedLive:
         self.update_seconds = float("nan")
         self.generation = 0  # counts resets: an update of views from before a reset is thrown away
         self._start: IntrinsicStart | None = None  # the last recalibration, the next one's warm start
+        self.watch_refusals = watch_refusals
+        self._near = False  # the last usable frame was near the suggestion
+        self._refused_frames = 0  # refused frames since then
+        self._views: list[Detection] = []  # the stored views of the last update
+        self.refused = ""
 
     def _state(self, width: int, height: int) -> GuideState:
         """The state, made on the first frame (its size gives the nominal camera). Under the lock."""
@@ -134,6 +151,9 @@ class GuidedLive:
                 return GuideVerdict(False, f"DONE: sigma {state.sigma_px:.3f} px <= goal {state.goal_sigma_px:g} px; "
                                            "call ~/calibrate", None)
             m = state.match(det)
+            refused = self._watch(det, m) if self.watch_refusals else ""
+            if refused:
+                return GuideVerdict(False, refused, None)
             if not m.matched and det.ok:  # the tilt hint needs the live target's pose
                 live = live_pose(state, det)
                 if live is not None:
@@ -143,10 +163,45 @@ class GuidedLive:
             return GuideVerdict(True, f"match {m.overlap:.2f}: {m.hint}", m)
         return GuideVerdict(False, f"match {m.overlap:.2f}: {m.hint}", m)
 
+    def _watch(self, det: Detection, m: Match) -> str:
+        """The refusal heuristic of ``collect:=auto`` (module docstring); under the lock. Returns
+        the refusal's line when this frame completes one."""
+        if det.ok:
+            self._near, self._refused_frames = m.overlap >= NEAR_OVERLAP, 0
+            return ""
+        if not self._near or not det.reason:
+            return ""
+        self._refused_frames += 1
+        if self._refused_frames < REFUSED_FRAMES:
+            return ""
+        return self._refuse_locked(det.reason)
+
+    def _refuse_locked(self, reason: str) -> str:
+        assert self.state is not None
+        line = self.state.refuse(reason)
+        self._near, self._refused_frames, self.last_match = False, 0, None
+        if line:
+            self.refused = line
+        if line and not self.state.suggestions and not self.computing and self._views:
+            self.computing = True  # none left: rank again, the refused neighbourhoods left out
+            threading.Thread(target=self._run, args=(list(self._views), self.generation), name="guide-update",
+                             daemon=True).start()
+        return line
+
+    def refuse(self, reason: str) -> str:
+        """The view taken at the current suggestion was refused by the detector (``reason``): its
+        neighbourhood is not suggested again until :meth:`reset`; returns the line that says so
+        ("" without a suggestion)."""
+        with self.lock:
+            if self.state is None:
+                return ""
+            return self._refuse_locked(reason)
+
     def stored(self, views: list[Detection]) -> bool:
         """A view was stored (``views``: all stored views now): update the guide on a worker thread.
         Returns False when an update already runs (it is repeated with these views when it ends)."""
         with self.lock:
+            self._views, self.refused = list(views), ""
             if self.computing:
                 self._again = list(views)
                 return False
@@ -207,6 +262,10 @@ class GuidedLive:
         with self.lock:
             if generation is not None and generation != self.generation:
                 return
+            if work is not self.state:  # a refusal while this ran: its neighbourhood is left out too
+                work.avoided, work.refusals = self.state.avoided, self.state.refusals
+                work.suggestions = work._allowed(work.suggestions)
+                work.index = min(work.index, max(len(work.suggestions) - 1, 0))
             self.state, self.error, self._start = work, error, start
             self.update_seconds = time.perf_counter() - t0
 
@@ -225,6 +284,7 @@ class GuidedLive:
             self.generation += 1
             self.state, self.size, self.computing, self._again = None, (0, 0), False, None
             self.last_match, self.error, self._start = None, "", None
+            self._views, self.refused, self._near, self._refused_frames = [], "", False, 0
 
     def view(self) -> GuideView:
         """The guide now, for the picture and ``~/status``."""
@@ -240,7 +300,8 @@ class GuidedLive:
                              predicted_sigma_px=cur.predicted_sigma_px if cur is not None else float("nan"),
                              pose=cur.pose if cur is not None else None,
                              index=s.index if s is not None else 0, count=len(s.suggestions) if s is not None else 0,
-                             error=self.error, update_seconds=self.update_seconds)
+                             error=self.error, update_seconds=self.update_seconds, refused=self.refused,
+                             avoided=len(s.avoided) if s is not None else 0)
 
     def set_goal(self, goal_sigma_px: float) -> None:
         """Change the goal at run time (done follows at once from the last real sigma)."""

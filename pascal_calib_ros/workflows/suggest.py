@@ -23,7 +23,8 @@ NEXT.yaml::
 
 With ``--poses`` also ``mode``, ``frame_id``, ``child_frame_id``, ``hand_eye_sigma_deg`` and
 ``hand_eye_sigma_mm`` now (sigma of X from the views' information, norms over the axes), their
-goals, and ``done`` requires those goals too.
+goals, and ``done`` requires those goals too. With placements to avoid (suggestions whose views the
+detector refused) also ``avoided``: their placements; no suggestion is in their neighbourhood.
 """
 
 from __future__ import annotations
@@ -37,10 +38,10 @@ import numpy as np
 import yaml
 from threadpoolctl import threadpool_limits
 
-from ..analysis.arm_guidance import ArmGoals, TrustRegion, arm_model, suggest_arm_views
+from ..analysis.arm_guidance import DISTINCT_ROLL_DEG, ArmGoals, TrustRegion, arm_model, suggest_arm_views
 from ..analysis.candidates import Placement
 from ..analysis.guidance import Linearisation, ViewPredictor
-from ..analysis.view_ranking import RankedView, suggest_views
+from ..analysis.view_ranking import RankedView, distinct_from_all, suggest_views
 from ..calibrate.handeye.options import HAND_EYE_MODES, HandEyeOptions
 from ..calibrate.handeye.session import calibrate_hand_eye_warm
 from ..calibrate.handeye.warm import HandEyeStart
@@ -99,6 +100,19 @@ def _view_doc(r: RankedView) -> dict[str, Any]:
             "placement": _placement_doc(r.placement)}
 
 
+def placement_of_doc(doc: dict[str, Any]) -> Placement:
+    """The :class:`~..analysis.candidates.Placement` of NEXT.yaml's ``placement`` mapping."""
+    u, v = (float(x) for x in doc["pixel"])
+    return Placement((u, v), float(doc["distance_m"]), float(doc["tilt_deg"]), float(doc["tilt_axis_deg"]),
+                     float(doc.get("roll_deg", 0.0)))
+
+
+def _with_avoided(doc: dict[str, Any], avoid: list[Placement]) -> dict[str, Any]:
+    if avoid:
+        doc["avoided"] = [_placement_doc(p) for p in avoid]
+    return doc
+
+
 def _usable(dets: list[Detection]) -> int:
     n = sum(d.ok for d in dets)
     if n < MIN_VIEWS:
@@ -107,8 +121,11 @@ def _usable(dets: list[Detection]) -> int:
     return n
 
 
-def suggest_for_person(dets: list[Detection], target: Target, opt: SuggestOptions) -> dict[str, Any]:
-    """NEXT.yaml's document for views without robot poses."""
+def suggest_for_person(dets: list[Detection], target: Target, opt: SuggestOptions,
+                       avoid: list[Placement] | None = None) -> dict[str, Any]:
+    """NEXT.yaml's document for views without robot poses; none of its suggestions in the
+    neighbourhood of a placement of ``avoid`` (views there were refused)."""
+    avoid = list(avoid or [])
     _usable(dets)
     try:
         res = calibrate(dets, target, CalibrationOptions(distortion=opt.distortion))
@@ -117,23 +134,27 @@ def suggest_for_person(dets: list[Detection], target: Target, opt: SuggestOption
     if res.refinement is None or res.refinement.covariance is None:
         raise SuggestError("the calibration has no covariance to predict from (refinement failed)")
     with threadpool_limits(1, "blas"):  # small dense products: one thread is faster on a shared machine
-        s = suggest_views(res.refinement, target, res.width, res.height, opt.n)
-    return {"done": bool(s.sigma_px <= opt.goal_sigma_px), "projection_sigma_px": round(s.sigma_px, 5),
-            "goal_sigma_px": opt.goal_sigma_px, "distance_m": round(s.distance, 4), "views_used": res.n_used,
-            "suggestions": [_view_doc(r) for r in s.suggestions]}
+        s = suggest_views(res.refinement, target, res.width, res.height, opt.n, avoid=avoid)
+    return _with_avoided({"done": bool(s.sigma_px <= opt.goal_sigma_px), "projection_sigma_px": round(s.sigma_px, 5),
+                          "goal_sigma_px": opt.goal_sigma_px, "distance_m": round(s.distance, 4),
+                          "views_used": res.n_used, "suggestions": [_view_doc(r) for r in s.suggestions]}, avoid)
 
 
 def suggest_for_arm(dets: list[Detection], robot: list[Transform | None], target: Target, opt: SuggestOptions,
-                    frames: tuple[str, str]) -> dict[str, Any]:
+                    frames: tuple[str, str], avoid: list[Placement] | None = None) -> dict[str, Any]:
     """NEXT.yaml's document for an arm session (``robot[i]``: T_base_tool of view i, or None)."""
-    return arm_suggestions(dets, robot, target, opt, frames)[0]
+    return arm_suggestions(dets, robot, target, opt, frames, avoid=avoid)[0]
 
 
 def arm_suggestions(dets: list[Detection], robot: list[Transform | None], target: Target, opt: SuggestOptions,
-                    frames: tuple[str, str], start: HandEyeStart | None = None) -> tuple[dict[str, Any], HandEyeStart]:
+                    frames: tuple[str, str], start: HandEyeStart | None = None,
+                    avoid: list[Placement] | None = None) -> tuple[dict[str, Any], HandEyeStart]:
     """:func:`suggest_for_arm`'s document, its hand-eye estimate warm from a previous call's ``start``
     where it applies (:mod:`..calibrate.handeye.warm`: the same estimate to the solves' tolerance;
-    "done" from the projection sigma of these views), and the start of the next call."""
+    "done" from the projection sigma of these views), and the start of the next call. ``avoid``:
+    placements whose views were refused; the ranking is asked for more views and those in their
+    neighbourhood (not distinct, the arm's roll counted) are left out."""
+    avoid = list(avoid or [])
     _usable([d for d, r in zip(dets, robot, strict=True) if r is not None])
     try:
         # the jackknife's sigmas of X are not what the prediction uses (it builds its own from the
@@ -153,22 +174,29 @@ def arm_suggestions(dets: list[Detection], robot: list[Transform | None], target
         intrinsic = ViewPredictor(Linearisation.of_refinement(ref), w, hgt)
         model = arm_model(h, poses, target, intrinsic.noise, w, hgt)  # type: ignore[arg-type]
         trust = TrustRegion(tuple(poses), opt.reach, opt.max_turn)  # type: ignore[arg-type]
-        s = suggest_arm_views(model, target, trust, opt.n, ArmGoals(opt.goal_sigma_px, opt.goal_deg, opt.goal_mm))
+        s = suggest_arm_views(model, target, trust, opt.n + 3 * len(avoid),
+                              ArmGoals(opt.goal_sigma_px, opt.goal_deg, opt.goal_mm))
         sigma = intrinsic.sigma_now()
+    kept = s.suggestions
+    if avoid and kept:
+        new = distinct_from_all([a.view.placement for a in kept], avoid, w, hgt, DISTINCT_ROLL_DEG)
+        kept = [a for a, k in zip(kept, new, strict=True) if k]
+    kept = kept[:opt.n]
     done = sigma <= opt.goal_sigma_px and s.rotation_deg <= opt.goal_deg and s.translation_mm <= opt.goal_mm
     sugg = []
-    for a in s.suggestions:
+    for a in kept:
         d = _view_doc(a.view)
         d["tool"] = _pose_doc(a.tool)
         d["predicted_hand_eye_sigma_deg"] = round(a.predicted_rotation_deg, 6)
         d["predicted_hand_eye_sigma_mm"] = round(a.predicted_translation_mm, 5)
         sugg.append(d)
-    return {"done": bool(done), "projection_sigma_px": round(sigma, 5), "goal_sigma_px": opt.goal_sigma_px,
+    doc = {"done": bool(done), "projection_sigma_px": round(sigma, 5), "goal_sigma_px": opt.goal_sigma_px,
             "distance_m": round(intrinsic.distance_now, 4), "views_used": len(used), "mode": opt.mode,
             "frame_id": frames[0], "child_frame_id": frames[1], "hand_eye_sigma_deg": round(s.rotation_deg, 6),
             "hand_eye_sigma_mm": round(s.translation_mm, 5), "goal_hand_eye_sigma_deg": opt.goal_deg,
             "goal_hand_eye_sigma_mm": opt.goal_mm, "reach_m": opt.reach, "max_turn_deg": opt.max_turn,
-            "suggestions": sugg}, nxt
+            "suggestions": sugg}
+    return _with_avoided(doc, avoid), nxt
 
 
 class WarmArmSuggestions:
@@ -184,10 +212,10 @@ class WarmArmSuggestions:
         self._lock = threading.Lock()
 
     def suggest(self, dets: list[Detection], robot: list[Transform | None], target: Target, opt: SuggestOptions,
-                frames: tuple[str, str]) -> dict[str, Any]:
+                frames: tuple[str, str], avoid: list[Placement] | None = None) -> dict[str, Any]:
         with self._lock:
             resets = self._resets
-            doc, nxt = arm_suggestions(dets, robot, target, opt, frames, self._start)
+            doc, nxt = arm_suggestions(dets, robot, target, opt, frames, self._start, avoid)
             if resets == self._resets:
                 self._start = nxt
             return doc
@@ -221,8 +249,12 @@ def summary(doc: dict[str, Any]) -> str:
         if "tool" in s:
             line += f", hand-eye {s['predicted_hand_eye_sigma_deg']:.4f} deg {s['predicted_hand_eye_sigma_mm']:.3f} mm"
         lines.append(line)
+    for p in doc.get("avoided", []):
+        lines.append(f"  avoided (a view there was refused): centre at pixel ({p['pixel'][0]:.0f}, "
+                     f"{p['pixel'][1]:.0f}), {p['distance_m']:.2f} m, tilted {p['tilt_deg']:.0f} deg about "
+                     f"{p['tilt_axis_deg']:.0f} deg, and its neighbourhood")
     return "\n".join(lines)
 
 
-__all__ = ["SuggestError", "SuggestOptions", "WarmArmSuggestions", "arm_suggestions", "suggest_for_arm",
-           "suggest_for_person", "summary", "write_next_yaml"]
+__all__ = ["SuggestError", "SuggestOptions", "WarmArmSuggestions", "arm_suggestions", "placement_of_doc",
+           "suggest_for_arm", "suggest_for_person", "summary", "write_next_yaml"]

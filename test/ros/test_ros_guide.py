@@ -299,3 +299,63 @@ def test_person_guide_draws_its_first_views_with_the_calibration_file(tmp_path: 
     finally:
         client.close()
         assert cal.stop() == 0, cal.log()
+
+
+def test_a_refused_capture_at_a_suggestion_is_reported_and_not_suggested_again(tmp_path: Path) -> None:
+    """Issue 36 through the node (guide:=true, collect:=on_capture): a ~/capture the detector
+    refuses is held against the suggestion it was taken at: ~/status says so with the reason and
+    the guide shows the next suggestion; after three stored views, a refused capture after
+    ~/suggest makes the next ~/suggest answer another view and say why."""
+    target = resolve_target("ring_a4")
+    cam = SessionSpec(width=W, height=H, k1=-0.1).camera()
+    dom = next_domain_id()
+    cal = NodeProcess("calibration_node", {"min_views": 3, "calibration_file": str(tmp_path / "cam.yaml"),
+                                           "guide": True, "collect": "on_capture", "goal_sigma_px": 0.001},
+                      dom, tmp_path / "cal.log")
+    client = RosClient(dom)
+    try:
+        out = Publisher(client, with_pose=False)
+        status = status_subscription(client)
+        blank = np.full((H, W), 200, np.uint8)  # what the detector refuses
+        out.image = blank
+        assert client.spin_until(lambda: _suggested(latest_status(status)) is not None, 30), cal.log()
+        first = _suggested(latest_status(status))
+        assert latest_status(status)["guide_avoided"] == "0"
+        r = client.call_trigger("/pascal_calib/capture", timeout=30)
+        assert not r.success and "nothing stored" in r.message, r.message
+        assert client.spin_until(lambda: latest_status(status).get("guide_avoided") == "1", 10), (
+            f"{latest_status(status)}\n{cal.log()}")
+        kv = latest_status(status)
+        assert kv["guide_refused"].startswith("refused (") and "not suggested again" in kv["guide_refused"], kv
+        assert not np.allclose(_suggested(kv).matrix, first.matrix)  # type: ignore[union-attr]
+        for k in range(3):  # three views captured at the guide's suggestions
+            T = _suggested(latest_status(status))
+            assert T is not None
+            out.image = render_view(target, cam, Pose(T.R, T.translation), SensorModel(seed=k)).image
+            client.spin_until(lambda: False, 0.5)
+            r = client.call_trigger("/pascal_calib/capture", timeout=30)
+            assert r.success, r.message
+            want = str(k + 1)
+            assert client.spin_until(lambda: latest_status(status).get("guide_computing") == "False"
+                                     and latest_status(status)["views_accepted"] == want, 60), cal.log()  # noqa: B023
+        assert latest_status(status)["guide_refused"] == ""  # a stored view clears the line, not the avoidance
+        r1 = client.call_trigger("/pascal_calib/suggest", timeout=60)
+        assert r1.success and r1.message.startswith("next") and "refused" not in r1.message, r1.message
+        out.image = blank
+        client.spin_until(lambda: False, 0.5)
+        assert not client.call_trigger("/pascal_calib/capture", timeout=30).success
+        r2 = client.call_trigger("/pascal_calib/suggest", timeout=60)
+        assert r2.success and "was refused (" in r2.message and "not suggested again (1 avoided)" in r2.message, (
+            r2.message)
+        pose = re.compile(r"camera_T_target t=\[[^]]*\] m q=\[[^]]*\]")
+        assert pose.search(r1.message).group(0) != pose.search(r2.message).group(0)  # type: ignore[union-attr]
+        client.spin_until(lambda: False, 0.5)
+        kv = latest_status(status)
+        assert kv["suggest_avoided"] == "1" and "was refused" in kv["suggest_refused"], kv
+        r = client.call_trigger("/pascal_calib/reset")
+        assert r.success
+        assert client.spin_until(lambda: latest_status(status).get("guide_avoided") == "0"
+                                 and "suggest_avoided" not in latest_status(status), 10), latest_status(status)
+    finally:
+        client.close()
+        assert cal.stop() == 0, cal.log()

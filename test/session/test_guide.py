@@ -8,6 +8,7 @@ import pytest
 
 from pascal_calib_ros.analysis.candidates import Placement, place
 from pascal_calib_ros.analysis.uncertainty import projection_uncertainty_of
+from pascal_calib_ros.analysis.view_ranking import distinct_from_all
 from pascal_calib_ros.calibrate.pipeline import calibrate
 from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.geometry.camera import Camera
@@ -70,3 +71,36 @@ def test_done_comes_from_the_recalibrated_views(ring_target: Target) -> None:
     assert not g.done and g.suggestions and all(s.predicted_sigma_px < g.sigma_px for s in g.suggestions)
     g.goal_sigma_px = 2 * g.sigma_px
     assert g.done
+
+
+def test_a_refused_view_at_a_suggestion_is_not_offered_again(ring_target: Target) -> None:
+    """Issue 36: a view the detector refused at a suggestion makes the guide avoid that
+    suggestion's neighbourhood (bootstrap and ranked alike) and offer the next one; the sigma and
+    done come from the recalibrated views only, so the refusal changes neither."""
+    guess = Camera.from_params(W, W, W / 2, H / 2, width=W, height=H)
+    g = GuideState(ring_target, guess, goal_sigma_px=1e-6)
+    boot = [s.placement for s in g.suggestions]
+    line = g.refuse("no ring found")
+    assert "no ring found" in line and g.avoided == [boot[0]] and g.refusals == [line]
+    assert g.current is not None and g.current.placement == boot[1]
+    g.update(None, W, H, 0)  # the bootstrap again (no view yet): the refused one stays out
+    assert [s.placement for s in g.suggestions] == boot[1:] and g.current.placement == boot[1]
+    dets = [_shot(ring_target, place(ring_target, TRUE, p), 10 + k) for k, p in enumerate(boot)]
+    extra = place(ring_target, TRUE, Placement((0.3 * W, 0.6 * H), boot[0].distance, 40.0, 200.0, 0.0))
+    dets.append(_shot(ring_target, extra, 20))
+    res = calibrate(dets, ring_target)
+    g.update(res.refinement, W, H, len(dets))
+    fresh = GuideState(ring_target, guess, goal_sigma_px=1e-6)
+    fresh.update(res.refinement, W, H, len(dets))
+    sigma, first = g.sigma_px, g.current
+    assert first is not None and len(g.suggestions) >= 2
+    g.refuse("ring cut by the image border")
+    assert g.current is not None and g.current.placement != first.placement
+    assert len(g.avoided) == 2 and g.sigma_px == sigma and not g.done
+    # ranked again on the same views: nothing in the refused suggestion's neighbourhood, the sigma unchanged
+    g.update(res.refinement, W, H, len(dets))
+    assert g.suggestions and distinct_from_all([s.placement for s in g.suggestions], [first.placement], W, H).all()
+    assert g.sigma_px == pytest.approx(sigma, rel=1e-12) and not g.done
+    # without the refusal the ranking offers that view again (what the session did before)
+    assert fresh.current is not None and fresh.current.placement == first.placement
+    assert fresh.sigma_px == pytest.approx(sigma, rel=1e-12)

@@ -13,8 +13,8 @@ import pytest
 from pascal_calib_ros.analysis.candidates import Placement, place
 from pascal_calib_ros.calibrate.options import CalibrationOptions
 from pascal_calib_ros.detect.target_detector import detect_target
-from pascal_calib_ros.session.guide_overlay import OUTLINE_BGR, draw_guide
-from pascal_calib_ros.session.guided_live import COMPUTING, GuidedLive
+from pascal_calib_ros.session.guide_overlay import OUTLINE_BGR, draw_guide, guide_lines
+from pascal_calib_ros.session.guided_live import COMPUTING, NEAR_OVERLAP, REFUSED_FRAMES, GuidedLive
 from pascal_calib_ros.session.live import LiveSession
 from pascal_calib_ros.session.overlay import draw_live_overlay
 from pascal_calib_ros.sim.render import Pose, SensorModel, render_view
@@ -171,3 +171,71 @@ def test_a_failing_update_is_reported_and_never_leaves_the_guide_computing(ring_
     v = guide.view()
     assert not v.computing and "LinAlgError" in v.error and not v.done and v.count >= 1
     assert guide.examine(dets[0]).line != COMPUTING
+
+
+def _refused(ring_target: Target) -> object:
+    det = detect_target(np.full((H, W), 200, np.uint8), ring_target)  # a blank sheet: the detector refuses it
+    assert not det.ok and det.reason
+    return det
+
+
+def test_a_view_refused_at_the_suggestion_is_reported_and_its_neighbourhood_avoided(ring_target: Target) -> None:
+    """collect:=auto: the person reached the suggestion (a usable frame near it), then the detector
+    refuses REFUSED_FRAMES frames in a row: the guide says so with the reason (the picture, the
+    view for ~/status) and offers the next suggestion, never the refused one again until reset."""
+    guide = GuidedLive(ring_target, CalibrationOptions(), goal_sigma_px=0.1, watch_refusals=True)
+    bad = _refused(ring_target)
+    img, near = _frame(ring_target, place(ring_target, TRUE, Placement((0.5 * W, 0.5 * H), 0.5, 30.0, 0.0, 0.0)), 1)
+    guide.examine(near)  # makes the state (the nominal camera)
+    first = guide.state.current  # type: ignore[union-attr]
+    _, at = _frame(ring_target, first.pose, 2)  # type: ignore[union-attr]
+    assert guide.examine(at).match.overlap >= NEAR_OVERLAP  # type: ignore[union-attr]
+    for _ in range(REFUSED_FRAMES - 1):  # not yet: a few refused frames are a person moving
+        assert not guide.examine(bad).line.startswith("refused")
+    assert guide.view().avoided == 0 and guide.state.current is first  # type: ignore[union-attr]
+    verdict = guide.examine(bad)
+    assert not verdict.store and verdict.line.startswith("refused (") and bad.reason in verdict.line
+    v = guide.view()
+    assert v.avoided == 1 and v.refused == verdict.line and v.index == 0 and v.count == 2
+    assert guide.state.current.placement != first.placement  # type: ignore[union-attr]
+    pic = draw_live_overlay(img, near, [], {}, 0, 3, False)
+    assert any(t == verdict.line for t, _ in guide_lines(v))
+    draw_guide(pic, v, W)
+    # refused frames without having come near the suggestion: nothing more is refused
+    for _ in range(2 * REFUSED_FRAMES):
+        guide.examine(bad)
+    assert guide.view().avoided == 1
+    # a stored view clears the line (the refusal stays in force); reset forgets it
+    guide.stored([at])
+    _wait(guide)
+    assert guide.view().refused == "" and guide.view().avoided == 1
+    assert all(s.placement != first.placement for s in guide.state.suggestions)  # type: ignore[union-attr]
+    guide.reset()
+    guide.examine(near)
+    assert guide.view().avoided == 0 and guide.state.current.placement == first.placement  # type: ignore[union-attr]
+
+
+def test_refused_views_count_neither_in_the_sigma_nor_in_done(ring_target: Target) -> None:
+    """The guide's sigma (and so done) is that of the usable views: refused detections among the
+    stored views, and a refused suggestion, leave it as it was."""
+    dets = [_frame(ring_target, place(ring_target, TRUE, Placement((u * W, v * H), 0.45, 35.0, a, 0.0)), k)[1]
+            for k, (u, v, a) in enumerate([(0.5, 0.5, 0.0), (0.35, 0.4, 120.0), (0.65, 0.6, 240.0),
+                                           (0.4, 0.65, 60.0)])]
+    bad = _refused(ring_target)
+    plain = GuidedLive(ring_target, CalibrationOptions(), goal_sigma_px=0.01)
+    plain.update_now(dets)
+    mixed = GuidedLive(ring_target, CalibrationOptions(), goal_sigma_px=0.01)
+    mixed.update_now([dets[0], bad, *dets[1:], bad])
+    a, b = plain.view(), mixed.view()
+    assert np.isfinite(a.sigma_px) and b.sigma_px == pytest.approx(a.sigma_px, rel=1e-9) and a.done == b.done
+    mixed.refuse(bad.reason)
+    c = mixed.view()
+    assert c.avoided == 1 and c.sigma_px == b.sigma_px and c.done == b.done
+    assert c.suggestion != b.suggestion
+    # done follows the usable views' real sigma
+    mixed.set_goal(1.01 * b.sigma_px)
+    assert mixed.view().done
+    # too few usable views among many refused ones: no sigma, not done
+    few = GuidedLive(ring_target, CalibrationOptions(), goal_sigma_px=1e3)
+    few.update_now([dets[0], bad, dets[1], bad, bad])
+    assert not np.isfinite(few.view().sigma_px) and not few.view().done

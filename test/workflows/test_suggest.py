@@ -143,3 +143,74 @@ def test_warm_arm_suggestions_answer_what_the_cold_call_answers() -> None:
             guide.reset()
         assert guide.suggest(views, robot[:len(views)], target, opt, frames) == \
             suggest_for_arm(views, robot[:len(views)], target, opt, frames)
+    # issue 36: the view at the first suggestion was refused: the next call offers nothing in its
+    # neighbourhood (the arm's roll counted), as many suggestions as before, the figures now unchanged
+    from pascal_calib_ros.analysis.arm_guidance import DISTINCT_ROLL_DEG
+    from pascal_calib_ros.analysis.view_ranking import distinct_from_all
+    from pascal_calib_ros.workflows.suggest import placement_of_doc
+
+    before = suggest_for_arm(dets, robot, target, opt, frames)
+    was = placement_of_doc(before["suggestions"][0]["placement"])
+    after = guide.suggest(dets, robot, target, opt, frames, avoid=[was])
+    assert after["avoided"] == [before["suggestions"][0]["placement"]]
+    assert len(after["suggestions"]) == len(before["suggestions"])
+    assert after["suggestions"][0] != before["suggestions"][0]
+    assert distinct_from_all([placement_of_doc(sg["placement"]) for sg in after["suggestions"]], [was], 640, 480,
+                             DISTINCT_ROLL_DEG).all()
+    for key in ("projection_sigma_px", "hand_eye_sigma_deg", "hand_eye_sigma_mm", "done", "views_used"):
+        assert after[key] == pytest.approx(before[key], rel=1e-4)
+
+
+def test_a_refused_newest_image_makes_the_previous_first_suggestion_avoided(
+        views: list[Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 36, iteratively: the refused images are listed with the reason; with --previous, a
+    refused newest image puts the previous call's first suggestion (and its neighbourhood) out of
+    the suggestions, says so, and NEXT.yaml carries it on in ``avoided``."""
+    import os
+    import shutil
+
+    import cv2
+
+    from pascal_calib_ros.analysis.view_ranking import distinct_from_all
+    from pascal_calib_ros.workflows.suggest import placement_of_doc
+
+    folder = tmp_path / "views"
+    folder.mkdir()
+    for p in views:
+        shutil.copy(p, folder / p.name)
+    first, second, third = tmp_path / "NEXT1.yaml", tmp_path / "NEXT2.yaml", tmp_path / "NEXT3.yaml"
+    assert main(["suggest", "--target", "ring_a4", "-n", "3", "--goal-sigma", "0.01", "-o", str(first),
+                 str(folder)]) == 0
+    doc1 = yaml.safe_load(first.read_text())
+    assert "avoided" not in doc1
+    capsys.readouterr()
+    refused = folder / "zz_refused.png"  # the view taken at the first suggestion: the detector refuses it
+    cv2.imwrite(str(refused), np.full((480, 640), 200, np.uint8))
+    newest = max(p.stat().st_mtime for p in folder.iterdir()) + 10
+    os.utime(refused, (newest, newest))
+    assert main(["suggest", "--target", "ring_a4", "-n", "3", "--goal-sigma", "0.01", "--previous", str(first),
+                 "-o", str(second), str(folder)]) == 0
+    out = capsys.readouterr().out
+    assert "rejected  zz_refused.png  no contrast" in out
+    assert "the newest image zz_refused.png was refused (no contrast" in out and "no longer suggested" in out
+    assert "avoided (a view there was refused)" in out
+    doc2 = yaml.safe_load(second.read_text())
+    was = placement_of_doc(doc1["suggestions"][0]["placement"])
+    assert doc2["avoided"] == [doc1["suggestions"][0]["placement"]]
+    assert doc2["suggestions"] and doc2["views_used"] == doc1["views_used"]
+    assert doc2["projection_sigma_px"] == doc1["projection_sigma_px"] and doc2["done"] == doc1["done"]
+    assert distinct_from_all([placement_of_doc(s["placement"]) for s in doc2["suggestions"]], [was], 640, 480).all()
+    # the next call, its newest image measured: the avoided placement is carried on, nothing added
+    os.utime(folder / views[0].name, (newest + 10, newest + 10))
+    assert main(["suggest", "--target", "ring_a4", "-n", "3", "--goal-sigma", "0.01", "--previous", str(second),
+                 "-o", str(third), str(folder)]) == 0
+    assert "the newest image" not in capsys.readouterr().out
+    assert yaml.safe_load(third.read_text())["avoided"] == doc2["avoided"]
+    # without --previous the refused image changes nothing: the same first suggestion as before
+    assert main(["suggest", "--target", "ring_a4", "-n", "3", "--goal-sigma", "0.01", "-o", str(third),
+                 str(folder)]) == 0
+    assert yaml.safe_load(third.read_text())["suggestions"][0] == doc1["suggestions"][0]
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("- just a list\n")
+    assert main(["suggest", "--target", "ring_a4", "--previous", str(bad), "-o", str(third), str(folder)]) == 2
+    assert "--previous" in capsys.readouterr().err
