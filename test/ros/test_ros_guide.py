@@ -174,10 +174,10 @@ def test_arm_loop_suggest_move_capture_reaches_done(tmp_path: Path) -> None:
         assert all(re.match(r"next: tool t=\[.*\] m q=\[.*\] in base_link: predicted sigma [\d.]+ px", a)
                    for a in answers[:-1]), answers
         assert views >= 4, answers  # the loose goals still need guided views
-        assert client.spin_until(lambda: bool(ranked) and bool(best), 10), cal.log()
-        msg = ranked[-1]
-        assert msg.header.frame_id == "base_link" and len(msg.poses) >= 1
-        assert np.allclose(_pose_of(best[-1].pose).matrix, _pose_of(msg.poses[0]).matrix)
+        # the two latched topics of the last ~/suggest arrive one after the other: wait for both
+        assert client.spin_until(lambda: bool(ranked) and bool(best) and len(ranked[-1].poses) >= 1 and np.allclose(
+            _pose_of(best[-1].pose).matrix, _pose_of(ranked[-1].poses[0]).matrix), 10), cal.log()
+        assert ranked[-1].header.frame_id == "base_link"
         sigma = float(re.search(r"now sigma ([\d.]+) px", answers[-1])[1])  # type: ignore[index]
         assert sigma <= GOAL_PX, answers[-1]
         he = _latched(client, TransformStamped, "/pascal_calib/hand_eye")
