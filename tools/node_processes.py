@@ -9,12 +9,16 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import IO, Any
 
 BIN = Path(sys.executable).parent
+# the nodes' home (results and sessions default to ~/.ros/pascal_calib): one per process that starts
+# nodes, never the user's (PASCAL_NODE_HOME overrides it)
+NODE_HOME = os.environ.get("PASCAL_NODE_HOME") or tempfile.mkdtemp(prefix="pascal_node_home_")
 RESPONSE_MATCH_GRACE = 0.5  # s a new service client waits after the service is ready (see call_trigger)
 
 
@@ -23,7 +27,8 @@ def ros_env(domain_id: int) -> dict[str, str]:
     env = dict(os.environ)
     env.update(ROS_DOMAIN_ID=str(domain_id), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
                AMENT_PREFIX_PATH=str(BIN.parent), PYTHONUNBUFFERED="1",
-               PYTHONFAULTHANDLER="1")  # a crash (e.g. SIGSEGV in native code) prints every thread's stack
+               PYTHONFAULTHANDLER="1",  # a crash (e.g. SIGSEGV in native code) prints every thread's stack
+               HOME=NODE_HOME)
     env.pop("ROS_STATIC_PEERS", None)
     return env
 

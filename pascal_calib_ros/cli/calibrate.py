@@ -22,6 +22,7 @@ from .common import (
     error,
     image_paths_or_none,
     progress,
+    session_defaults,
     target_or_none,
     write_report_files,
 )
@@ -29,11 +30,13 @@ from .common import (
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     c = sub.add_parser("calibrate", help="calibrate from image files; writes camera_calibration_parsers YAML")
-    c.add_argument("--target", required=True, help="target YAML file or packaged name (ring_a4, pascal_board_a3)")
+    c.add_argument("--target", help="target YAML file or packaged name (ring_a4, pascal_board_a3); default: the "
+                                     "recorded session's")
     c.add_argument("--method", choices=METHODS, help="default: the target's natural method (ring for a ring)")
-    c.add_argument("--camera-name", default="camera")
+    c.add_argument("--camera-name", default=None, help="default: camera (a session: its camera name)")
     c.add_argument("-o", "--output", required=True, help="output YAML path")
-    c.add_argument("--distortion", default="plumb_bob", choices=sorted(DISTORTION_MODELS))
+    c.add_argument("--distortion", default=None, choices=sorted(DISTORTION_MODELS),
+                   help="default: plumb_bob (a session: the model it was recorded with)")
     c.add_argument("--no-refine", action="store_true",
                    help="closed form only (no distortion); with --method zhang: OpenCV's calibrateCamera as it is")
     c.add_argument("--loss", default="soft_l1", choices=("soft_l1", "linear"),
@@ -45,7 +48,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "median distance from the camera to the observed target's centre")
     c.add_argument("--no-edge-offset", action="store_true", help="do not estimate the per-view edge offset")
     c.add_argument("--skew", action="store_true", help="estimate skew (default: zero skew)")
-    c.add_argument("--gamma", type=float, default=1.0, help="linearise with this display gamma before edges")
+    c.add_argument("--gamma", type=float, default=None,
+                   help="linearise with this display gamma before edges (default 1; a session: its gamma)")
     c.add_argument("--max-blur", type=float, default=4.0, help="reject views whose edges are wider (px)")
     c.add_argument("--min-views", type=int, default=3)
     c.add_argument("--target-shape", nargs="?", const="warp", choices=[k for k in SHAPE_CHOICES if k],
@@ -56,7 +60,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="also calibrate two interleaved halves of the views and compare them against their "
                         "projection uncertainty (a model error shows as a larger difference; needs 2 x --min-views "
                         "usable views)")
-    c.add_argument("images", nargs="+", help="image files or folders")
+    c.add_argument("images", nargs="+", help="image files or folders, or a session folder recorded by the node "
+                                             "(its frames and settings; docs/nodes.md, Sessions)")
     c.set_defaults(func=run)
 
 
@@ -69,6 +74,11 @@ def options_of(args: argparse.Namespace, method: str) -> CalibrationOptions:
 
 
 def run(args: argparse.Namespace) -> int:
+    if session_defaults(args) is False:
+        return EXIT_INPUT
+    if args.target is None:
+        error("--target is required (unless the images are a recorded session folder)")
+        return EXIT_INPUT
     target = target_or_none(args.target)
     if target is None:
         return EXIT_INPUT

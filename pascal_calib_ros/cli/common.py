@@ -11,6 +11,7 @@ from ..analysis.assessment import Assessment
 from ..calibrate.handeye import HandEyeResult
 from ..detect.detection import Detection
 from ..io.images import expand_image_args, read_grey
+from ..io.session_folder import SessionFolder, SessionFolderError, is_session_folder
 from ..report.pages import write_report
 from ..targets import Target, TargetError, resolve_target
 
@@ -64,3 +65,36 @@ def distance_arg(text: str) -> float:
     if not d > 0:
         raise argparse.ArgumentTypeError(f"the distance must be positive (or inf), not {text}")
     return d
+
+
+SESSION_DEFAULTS = {"distortion": "plumb_bob", "gamma": 1.0, "camera_name": "camera"}
+
+
+def session_defaults(args: argparse.Namespace) -> SessionFolder | bool | None:
+    """A recorded session given as the only image argument (:mod:`..io.session_folder`): its frames
+    become the images, and the target, lens model, gamma and camera name it was recorded with fill
+    the options left unset (``None``). Returns the folder, None when the argument is not one, or
+    False after printing why it cannot be read."""
+    images = list(getattr(args, "images", []) or [])
+    if len(images) != 1 or not is_session_folder(images[0]):
+        for k, v in SESSION_DEFAULTS.items():
+            if getattr(args, k, v) is None:
+                setattr(args, k, v)
+        return None
+    try:
+        folder = SessionFolder.open(images[0])
+    except SessionFolderError as e:
+        error(str(e))
+        return False
+    m = folder.manifest
+    recorded = {"target": folder.target_source(), "distortion": m.distortion_model, "gamma": m.gamma,
+                "camera_name": m.camera_name}
+    for k, v in recorded.items():
+        if getattr(args, k, None) is None:
+            setattr(args, k, v)
+        elif getattr(args, k) != v:
+            print(f"note: --{k.replace('_', '-')} {getattr(args, k)} (the session was recorded with {v})")
+    args.images = [str(folder.path / v.image) for v in folder.views]
+    print(f"session {folder.path}: {len(folder.views)} view(s), target {m.target}, {m.distortion_model}, "
+          f"gamma {m.gamma:g}" + (f", {m.hand_eye} ({m.frame_id} -> {m.child_frame_id})" if m.hand_eye else ""))
+    return folder

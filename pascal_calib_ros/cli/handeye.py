@@ -15,6 +15,7 @@ from ..detect.detection import Detection, DetectionParams
 from ..geometry.transform import Transform
 from ..io.bags import BagError
 from ..io.hand_eye_yaml import PosesYamlError, read_poses_yaml, write_hand_eye_yaml
+from ..io.session_folder import SessionFolder
 from ..report.text import format_summary, hand_eye_summary
 from ..session.arm_bag import read_arm_bag
 from ..targets import Target
@@ -28,6 +29,7 @@ from .common import (
     error,
     image_paths_or_none,
     progress,
+    session_defaults,
     target_or_none,
     write_report_files,
 )
@@ -38,7 +40,7 @@ SessionInput = tuple[str, str, list[Detection], list[Transform | None], str, lis
 def add_parser(sub: argparse._SubParsersAction) -> None:
     h = sub.add_parser("handeye", help="intrinsics + hand-eye transform from images and robot poses (POSES.yaml), "
                                        "or from a recorded arm session (rosbag2)")
-    h.add_argument("--target", required=True, help="target YAML file or packaged name")
+    h.add_argument("--target", help="target YAML file or packaged name (default: the recorded session's)")
     h.add_argument("--poses", help="POSES.yaml: the tool pose in the base frame per image")
     h.add_argument("--bag", help="instead of --poses and images: a rosbag2 arm session (images and the tool pose "
                                  "as PoseStamped or TransformStamped); one still frame per rest of the arm is used")
@@ -47,15 +49,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     h.add_argument("--pose-max-age", type=float, default=0.1,
                    help="with --bag: a frame's pose is interpolated from samples at most this many seconds away")
     h.add_argument("--tool-frame", default="", help="with --bag: the tool frame of PoseStamped poses (default tool0)")
-    h.add_argument("--mode", required=True, choices=("eye_in_hand", "eye_to_hand"))
+    h.add_argument("--mode", choices=("eye_in_hand", "eye_to_hand"), help="default: the recorded session's")
     h.add_argument("-o", "--output", required=True, help="camera YAML path")
     h.add_argument("--hand-eye-out", default="", help="HAND_EYE.yaml path (default: hand_eye.yaml beside -o)")
     h.add_argument("--camera-frame", default="camera_optical_frame")
-    h.add_argument("--camera-name", default="camera")
+    h.add_argument("--camera-name", default=None, help="default: camera (a session: its camera name)")
     h.add_argument("--method", choices=METHODS, help="default: the target's natural method")
-    h.add_argument("--distortion", default="plumb_bob", choices=sorted(DISTORTION_MODELS))
+    h.add_argument("--distortion", default=None, choices=sorted(DISTORTION_MODELS),
+                   help="default: plumb_bob (a session: its model)")
     h.add_argument("--skew", action="store_true", help="estimate skew (default: zero skew)")
-    h.add_argument("--gamma", type=float, default=1.0, help="linearise with this display gamma before edges")
+    h.add_argument("--gamma", type=float, default=None,
+                   help="linearise with this display gamma before edges (default 1; a session: its gamma)")
     h.add_argument("--max-blur", type=float, default=4.0, help="reject views whose edges are wider (px)")
     h.add_argument("--robot-sigma-mm", type=float, default=0.1, help="the arm's pose accuracy per axis (start)")
     h.add_argument("--robot-sigma-deg", type=float, default=0.01)
@@ -66,7 +70,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     h.add_argument("--arm-accuracy-length", type=float, default=0.3, help="metres over which that error changes")
     h.add_argument("--report", metavar="DIR", help="write report.pdf (8 pages: the camera's 7 and the hand-eye "
                                                     "page), report.png and report.json into DIR")
-    h.add_argument("images", nargs="*", help="image files or folders (with --poses)")
+    h.add_argument("images", nargs="*", help="image files or folders (with --poses), or a session folder recorded "
+                                             "by the node (its frames, robot poses and settings)")
     h.set_defaults(func=run)
 
 
@@ -109,8 +114,29 @@ def from_pose_file(args: argparse.Namespace, target: Target, params: DetectionPa
     return frame_id, child_id, dets, [poses.get(p.name) for p in paths], Path(args.poses).name, paths
 
 
+def from_session(folder: SessionFolder, target: Target, params: DetectionParams) -> SessionInput | None:
+    """The same from a session folder the node recorded (:mod:`..io.session_folder`)."""
+    m = folder.manifest
+    if not folder.views or all(v.robot_pose is None for v in folder.views):
+        error(f"{folder.path}: no recorded view has a robot pose")
+        return None
+    paths = [folder.path / v.image for v in folder.views]
+    dets = detect_files(paths, target, params, progress())
+    return (m.frame_id or "base_link", m.child_frame_id or "tool0", dets, [v.robot_pose for v in folder.views],
+            "the session", paths)
+
+
 def run(args: argparse.Namespace) -> int:
-    """Joint intrinsic + hand-eye calibration from images and POSES.yaml, or from an arm session bag."""
+    """Joint intrinsic + hand-eye calibration from images and POSES.yaml, a recorded session, or an
+    arm session bag."""
+    folder = session_defaults(args)
+    if folder is False:
+        return EXIT_INPUT
+    if args.mode is None and isinstance(folder, SessionFolder) and folder.manifest.hand_eye:
+        args.mode = folder.manifest.hand_eye
+    if args.target is None or args.mode is None:
+        error("--target and --mode are required (unless the images are a recorded arm session folder)")
+        return EXIT_INPUT
     target = target_or_none(args.target)
     if target is None:
         return EXIT_INPUT
@@ -123,7 +149,10 @@ def run(args: argparse.Namespace) -> int:
         error("give either --bag BAG or --poses POSES.yaml IMAGES..., not both")
         return EXIT_INPUT
     params = detection_params(args.distortion, args.gamma, args.max_blur)
-    loaded = from_bag(args, target, params) if args.bag else from_pose_file(args, target, params)
+    if isinstance(folder, SessionFolder):
+        loaded = from_session(folder, target, params)
+    else:
+        loaded = from_bag(args, target, params) if args.bag else from_pose_file(args, target, params)
     if loaded is None:
         return EXIT_INPUT
     frame_id, child_id, dets, robot, pose_source, paths = loaded

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import contextlib
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from ..errors import PascalCalibError
+from .atomic import FileWriteError, write_bytes_atomic
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm")
 
@@ -38,27 +38,31 @@ class ImageWriteError(PascalCalibError):
     """An image cannot be written (the folder cannot be made, no permission, disk full, no encoder)."""
 
 
+def encode_image(img: np.ndarray, suffix: str = ".png") -> bytes:
+    """The file bytes of ``img`` in the format of ``suffix`` (:class:`ImageWriteError` when OpenCV
+    cannot encode it)."""
+    try:
+        ok, data = cv2.imencode(suffix, img)
+    except cv2.error as e:
+        raise ImageWriteError(f"OpenCV cannot encode the image as {suffix}: {e}") from None
+    if not ok:
+        raise ImageWriteError(f"OpenCV cannot encode the image as {suffix}")
+    return data.tobytes()
+
+
 def write_image(path: str | Path, img: np.ndarray) -> Path:
-    """Write ``img`` in the format of ``path``'s suffix, creating the folder, atomically (a temporary
-    file, then a rename). Raises :class:`ImageWriteError` with the reason (``cv2.imwrite`` only
-    returns False)."""
+    """Write ``img`` in the format of ``path``'s suffix, creating the folder, atomically
+    (:func:`.atomic.write_bytes_atomic`). Raises :class:`ImageWriteError` with the reason
+    (``cv2.imwrite`` only returns False)."""
     p = Path(path)
     try:
-        ok, data = cv2.imencode(p.suffix or ".png", img)
-    except cv2.error as e:
-        raise ImageWriteError(f"cannot write {p}: OpenCV cannot encode the image as {p.suffix}: {e}") from None
-    if not ok:
-        raise ImageWriteError(f"cannot write {p}: OpenCV cannot encode the image as {p.suffix}")
-    tmp = p.with_name(p.name + ".tmp")
+        data = encode_image(img, p.suffix or ".png")
+    except ImageWriteError as e:
+        raise ImageWriteError(f"cannot write {p}: {e}") from None
     try:
-        p.parent.mkdir(parents=True, exist_ok=True)
-        tmp.write_bytes(data.tobytes())
-        tmp.replace(p)
-    except OSError as e:
-        with contextlib.suppress(OSError):
-            tmp.unlink(missing_ok=True)
-        raise ImageWriteError(f"cannot write {p}: {e.strerror or e}") from None
-    return p
+        return write_bytes_atomic(p, data)
+    except FileWriteError as e:
+        raise ImageWriteError(str(e)) from None
 
 
 def expand_image_args(args: list[str]) -> list[Path]:

@@ -32,7 +32,6 @@ from sensor_msgs.srv import SetCameraInfo
 from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
-from ..analysis.verify import Reference
 from ..calibrate.handeye import HandEyeOptions
 from ..calibrate.options import CalibrationOptions
 from ..calibrate.problem import SHAPE_CHOICES
@@ -40,10 +39,7 @@ from ..calibrate.result import CalibrationError, CalibrationResult
 from ..detect.detection import Detection
 from ..detect.target_detector import detect_target
 from ..errors import PascalCalibError
-from ..io.calibration_files import read_calibration_file
-from ..io.hand_eye_yaml import write_hand_eye_yaml
 from ..io.image_msgs import ImageConversionError, compressed_to_grey, grey_to_image_fields, image_to_grey
-from ..io.images import read_grey
 from ..session.collector import placement_points
 from ..session.live import LiveSession, Snapshot, max_motion_of
 from ..targets import Target, resolve_target
@@ -51,19 +47,20 @@ from ..workflows.detection import detection_params
 from ..workflows.hand_eye import hand_eye_doubts, hand_eye_frames, run_hand_eye
 from ..workflows.intrinsic import run_intrinsic
 from ..workflows.outputs import (
+    HAND_EYE_FILE,
+    ReportRequest,
     calibration_file_path,
     camera_info_data,
-    hand_eye_file_path,
-    write_calibration_record,
-    write_camera_file,
-    write_session_files,
+    write_result_files,
 )
-from ..workflows.verify import hand_eye_reference_of_result, reference_of_file, reference_of_result, verify_views
+from ..workflows.result_set import ResultSet
 from .commit import commit_camera_info
 from .conversions import camera_info_msg, transform_msg
-from .guard import guarded_callback, guarded_parameters, guarded_service, save_frame
+from .guard import guarded_callback, guarded_parameters, guarded_service
 from .guide_services import NodeGuide
 from .image_subscription import MatchedImageSubscription
+from .node_session import FileWriteError, NodeSession
+from .node_verify import run_verification
 from .params import ParameterError, declare_parameters, param_value, params_for, validate_parameters
 from .robot_poses import RobotPoseInput
 from .status import status_message
@@ -93,7 +90,6 @@ class CalibrationNode(Node):
         self.result: CalibrationResult | None = None
         self.result_msg: CameraInfo | None = None
         self.frames_received = self.frames_dropped = self.frames_bad = self.frames_examined = 0
-        self.frames_not_saved = 0  # stored frames output_dir could not take (save_frame)
         self._session_start = (0, 0)  # frames received / dropped before the last ~/reset
         self.last_error = ""
         self.frame_id = "camera"
@@ -108,14 +104,19 @@ class CalibrationNode(Node):
         self._stop = threading.Event()
         self._worker = threading.Thread(target=self._work, name="detector", daemon=True)
         self._create_interfaces()
+        self.recording = NodeSession(self)  # the session folder (resume), the result sets and their labels
+        resumed = self.recording.resume()
         if self.pose_topic:
             self.robot = RobotPoseInput(self, self.pose_topic, lambda: (str(self.p("robot_base_frame")),
                                                                         str(self.p("robot_tool_frame"))))
         self._worker.start()
+        folder = self.recording.folder
         self.get_logger().info(
             f"target {self.target.name}, method {self.method}, listening on "
             f"{self.resolve_topic_name(self.topic)} ({self.p('transport')}, qos {self.p('qos')}); "
-            f"call {self.resolve_service_name('~/calibrate')} when the status says ready")
+            f"call {self.resolve_service_name('~/calibrate')} when the status says ready"
+            + (f"; session folder {folder.path}" + (f" ({resumed} view(s) resumed)" if resumed else "")
+               if folder is not None else ""))
 
     def _create_interfaces(self) -> None:
         """Publishers, services and the image subscription (docs/nodes.md lists them)."""
@@ -231,17 +232,19 @@ class CalibrationNode(Node):
         if msg.header.frame_id:
             self.frame_id = msg.header.frame_id
         params = detection_params(str(self.p("distortion_model")), float(self.p("gamma")))
-        det = detect_target(img, self.target, params, name=f"frame_{self.frames_received:06d}")
+        det = detect_target(img, self.target, params,
+                            name=f"frame_{self.recording.name_offset + self.frames_received:06d}")
         stamp_ns = int(msg.header.stamp.sec) * 10**9 + int(msg.header.stamp.nanosec)
         poses = self.robot.poses if self.robot is not None else None
         if poses is not None:  # the pose for this stamp may still be on its way (another topic)
             poses.wait_until_covers(stamp_ns, max(float(self.p("pose_max_age")), POSE_ARRIVAL_WAIT_S))
         out = self.session.examine(det, stamp_ns, poses, float(self.p("pose_max_age")), received_at,
-                                   drawing=self.pub_det.get_subscription_count() > 0, guide=self.guide.examine(det))
+                                   drawing=self.pub_det.get_subscription_count() > 0, guide=self.guide.examine(det),
+                                   persist=self.recording.persist(img, stamp_ns))
         if out.accepted:
             self.guide.stored(self.session.snapshot().views)  # the next suggestion, on the guide's own thread
-        if out.accepted and self.p("output_dir"):  # the report's worst views are read back by name
-            save_frame(self, Path(self.p("output_dir")) / "frames" / f"{det.name}.png", img)
+        if out.written.startswith("not written"):
+            self.last_error = out.written
         vis = self.session.picture(img, det, out)
         if vis is not None:
             vis = self.guide.draw(vis, img.shape[1])
@@ -277,8 +280,19 @@ class CalibrationNode(Node):
 
     # -- calibration ------------------------------------------------------------------------
     def run_calibration(self) -> tuple[bool, str]:
+        """One attempt; a failed one is labelled (``~/status``'s ``last_attempt``; ``~/commit`` then refuses)."""
         if not self.calibrating.acquire(blocking=False):
             return False, "a calibration is already running; try again when it finishes"
+        try:
+            ok, answer = self._attempt()
+        finally:
+            self.calibrating.release()
+        if not ok:
+            self.recording.history.attempt_failed(answer)
+            self.publish_status()
+        return ok, answer
+
+    def _attempt(self) -> tuple[bool, str]:
         try:
             snap = self.session.snapshot()
             if len(snap.views) < snap.min_views:
@@ -295,8 +309,6 @@ class CalibrationNode(Node):
         except Exception as e:  # never let a numerical failure take the node down
             self.get_logger().error(f"calibration crashed: {type(e).__name__}: {e}")
             return False, f"calibration failed: {type(e).__name__}: {e}"
-        finally:
-            self.calibrating.release()
 
     def _run_intrinsic(self, views: list[Detection], opts: CalibrationOptions) -> tuple[bool, str]:
         try:
@@ -305,9 +317,12 @@ class CalibrationNode(Node):
             self.get_logger().warn(f"calibration failed: {e}")
             return False, f"calibration failed: {e}"
         res = out.assessment.result
-        path = self._write_outputs(out.assessment, views)
+        try:
+            rs = self._write_outputs(out.assessment, views)
+        except FileWriteError as e:
+            return False, f"calibration not published: {e}"
         self._publish_camera(res)
-        answer = out.answer(str(path))
+        answer = out.answer(str(self.calibration_path())) + f" result={rs.id}"
         for line in out.cross_validation_lines:
             self._log(line, out.halves_agree is True)
         self.get_logger().info(f"calibrated: {answer}")
@@ -341,13 +356,14 @@ class CalibrationNode(Node):
                           + " (add views with larger rotations about different axes)")
         cam_frame = str(self.p("camera_frame"))
         parent, target_frame = hand_eye_frames(mode, str(self.p("robot_base_frame")), str(self.p("robot_tool_frame")))
-        path = self._write_outputs(out.assessment, snap.views, out)
-        he_path = hand_eye_file_path(path, str(self.p("camera_name")))
         try:
-            write_hand_eye_yaml(he_path, out.record(parent, cam_frame, target_frame))
-        except OSError as e:
-            return refuse(f"cannot write {he_path}: {e}")
-        self.hand_eye_line, summary = out.answer(parent, cam_frame, len(snap.views), str(he_path), str(path))
+            rs = self._write_outputs(out.assessment, snap.views, out, out.record(parent, cam_frame, target_frame))
+        except FileWriteError as e:
+            return refuse(f"nothing published: {e}")
+        path = self.calibration_path()
+        self.hand_eye_line, summary = out.answer(parent, cam_frame, len(snap.views), str(path.parent / HAND_EYE_FILE),
+                                                 str(path))
+        summary += f" result={rs.id}"
         self.hand_eye_result = (out.result, parent, cam_frame)
         self._publish_camera(out.assessment.result)
         tf = transform_msg(out.result.hand_eye, parent, cam_frame, self.get_clock().now().to_msg())
@@ -363,20 +379,20 @@ class CalibrationNode(Node):
         self.result, self.result_msg = res, msg
         self.pub_info.publish(msg)
 
-    def _write_outputs(self, a: Any, views: list[Detection], hand_eye: Any = None) -> Path:
-        """The camera YAML; with ``output_dir`` also ``calibration.json`` and the report."""
-        name, out_dir = str(self.p("camera_name")), str(self.p("output_dir"))
-        path = write_camera_file(a.result, self.calibration_path(), name)
-        write_calibration_record(a, path, name)  # CAM.calibration.json: what ~/verify and export need
-        if out_dir:
-            frames = Path(out_dir) / "frames"
-            try:
-                write_session_files(a, views, out_dir, lambda n: read_grey(frames / f"{n}.png")
-                                    if (frames / f"{n}.png").exists() else None,
-                                    hand_eye=hand_eye.result if hand_eye is not None else None)
-            except Exception as e:  # a report must never cost the calibration
-                self.get_logger().warn(f"report not written: {type(e).__name__}: {e}")
-        return path
+    def _write_outputs(self, a: Any, views: list[Detection], hand_eye: Any = None, record: Any = None) -> ResultSet:
+        """One result set (:meth:`.node_session.NodeSession.write_result`): the camera YAML, its record,
+        ``hand_eye.yaml`` and, with ``output_dir``, ``calibration.json`` and the report."""
+        name = str(self.p("camera_name"))
+        report = (ReportRequest(views, self.recording.images(), hand_eye.result if hand_eye is not None else None)
+                  if self.p("output_dir") else None)
+        warnings: list[str] = []
+
+        def fill(folder: Path) -> None:
+            warnings.extend(write_result_files(folder, a, name, record, report))
+        rs = self.recording.write_result(fill, len(views))
+        for w in warnings:
+            self.get_logger().warn(w)
+        return rs
 
     # -- services -------------------------------------------------------------------------
     def _srv_calibrate(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
@@ -402,55 +418,37 @@ class CalibrationNode(Node):
         return resp
 
     def run_verification(self) -> tuple[bool, str]:
-        """The views collected since the last ~/reset against the published calibration (and the
-        hand-eye result): success when the test could run; the answer starts with the verdict."""
-        snap = self.session.snapshot()
-        try:
-            reference = self._verify_reference()
-        except PascalCalibError as e:
-            return False, f"nothing to verify against: {e}"
-        robot, he_ref = None, None
-        if self.hand_eye_result is not None:
-            he, parent, cam_frame = self.hand_eye_result
-            robot = list(snap.robot_poses)
-            he_ref = hand_eye_reference_of_result(he, parent, cam_frame, float(self.p("arm_accuracy_mm")),
-                                                  float(self.p("arm_accuracy_length")))
-        try:
-            _, line = verify_views(snap.views, self.target, reference, robot, he_ref)
-        except PascalCalibError as e:
-            return False, f"the views cannot test the calibration: {e}"
-        except Exception as e:  # never let a numerical failure take the node down
-            self.get_logger().error(f"verification crashed: {type(e).__name__}: {e}")
-            return False, f"verification failed: {type(e).__name__}: {e}"
-        self.verify_line = line
-        return True, line
-
-    def _verify_reference(self) -> Reference:
-        """The calibration under test: this session's last result, else the calibration file (with its
-        ``.calibration.json`` beside it for the covariance)."""
-        if self.result is not None:
-            return reference_of_result(self.result)
-        path = self.calibration_path()
-        if not path.exists():
-            raise PascalCalibError(f"no calibration in this session and no {path}: call ~/calibrate first")
-        return reference_of_file(read_calibration_file(path))
+        """The views collected since the last ~/reset against the published calibration (:mod:`.node_verify`)."""
+        ok, line = run_verification(self)
+        if ok:
+            self.verify_line = line
+        return ok, line
 
     def _srv_reset(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
         n = self.session.clear()
         if self.robot is not None:  # a session's stamps start over (a looped bag, a restarted driver)
             self.robot.poses.clear()
-        self.guide.reset()
+        self.guide.reset()  # and its latched suggestions
+        kept = self.recording.clear()
         self.auto_done_at = -1
         with self._pending_cv:
             self._session_start = (self.frames_received, self.frames_dropped)
         running = " (a running calibration finishes on its own copy of the views)" if self.calibrating.locked() else ""
-        resp.success, resp.message = True, f"cleared {n} view(s){running}; the last result is kept"
+        live = self.recording.history.live
+        resp.success, resp.message = True, (f"cleared {n} view(s){running}{kept}; the live "
+                                            f"{live.describe() if live else 'result: none'} is kept")
         self.get_logger().info(resp.message)
         self.publish_status()
         return resp
 
     def _srv_commit(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
-        resp.success, resp.message = commit_camera_info(self.set_info_client, self.result_msg)
+        problem = self.recording.history.commit_problem()
+        if problem:
+            resp.success, resp.message = False, problem
+        else:
+            live = self.recording.history.live
+            resp.success, resp.message = commit_camera_info(self.set_info_client, self.result_msg)
+            resp.message = f"{live.describe() if live else 'result'}: {resp.message}"
         self._log(resp.message, resp.success)
         return resp
 

@@ -162,6 +162,12 @@ class NodeGuide:
         return None if self.live is None else self.live.view()
 
     def reset(self) -> None:
+        """Forget the session's suggestions: the latched ``~/suggested_tool_poses`` becomes an empty
+        array (a late subscriber must not drive the arm to a pose of the cleared session)."""
+        if self.node.p("hand_eye"):
+            header = self.node._header()
+            header.frame_id = str(self.node.p("robot_base_frame"))
+            self.pub_poses.publish(PoseArray(header=header, poses=[]))
         self.arm.reset()
         self.avoid, self._offered, self.suggest_refused = [], None, ""
         self._refusals = self._capture_refusals()  # the session was cleared first: refusals before are not held

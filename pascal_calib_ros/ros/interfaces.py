@@ -22,7 +22,9 @@ CALIBRATION_NODE_INTERFACES = (
     Interface('image/compressed', 'sub', 'sensor_msgs/CompressedImage', 'with `transport:=compressed` (JPEG/PNG)'),
     Interface('~/status', 'pub', 'diagnostic_msgs/DiagnosticArray',
               '1 Hz and on every accepted view: views accepted / rejected with reasons (counted per kind), coverage '
-              'per axis (x, y, size, skew), ready, frames received / examined / dropped / bad, last result; if '
+              'per axis (x, y, size, skew), ready, frames received / examined / dropped / bad, last result; '
+              '`result_id` and `result_at` (the live result), `last_attempt` (`succeeded`, or `failed at HH:MM:SS: '
+              '<why>`), `session_folder`, `session_views_written` / `session_views_not_written`; if '
               'frames were dropped while the detector was busy, the message and `frames_dropped_note` say how many '
               'and what to do; with `guide:=true` the guide\'s `guide_sigma_px` (real, of the stored views), '
               '`guide_goal_sigma_px`, `guide_done`, `guide_computing`, `guide_suggestion`, '
@@ -49,9 +51,13 @@ CALIBRATION_NODE_INTERFACES = (
               'lens models)'),
     Interface('~/calibrate', 'srv', 'std_srvs/Trigger',
               'calibrate the collected views; answers `fx= fy= cx= cy= rms= views= method= time= yaml=; projection '
-              "sigma ...` (with `cross_validate`, also the cross-validation's two lines) or the reason it failed"),
+              "sigma ... result=<id>` (with `cross_validate`, also the cross-validation's two lines) or the reason it "
+              'failed; a success writes one result set (`output_dir`) and is the live result `<id>`; a failure '
+              'keeps the previous result published and is labelled in `~/status` (`last_attempt`)'),
     Interface('~/reset', 'srv', 'std_srvs/Trigger',
-              'clear the views and the robot pose buffer (the last good result stays published)'),
+              'clear the views, the robot pose buffer and the latched suggested tool poses (an empty '
+              '`~/suggested_tool_poses`); the session folder starts over, the cleared views kept as '
+              '`cleared-<time>.session.yaml`; the live result stays published'),
     Interface('~/capture', 'srv', 'std_srvs/Trigger',
               'examine the next still frame received after the call (within `capture_timeout`) and store it as a '
               'view even if it resembles a stored one; answers `view N stored: target at (x, y) px, tilt T deg, '
@@ -76,7 +82,10 @@ CALIBRATION_NODE_INTERFACES = (
               'step or wrong stamps`), stamps going back more than 2 s (a clock step, a restarted driver, a looped '
               'bag) start the pose buffer over; `~/status` `robot_pose_buffer` and a refused capture say which'),
     Interface('~/commit', 'srv', 'std_srvs/Trigger',
-              "send the last good result to the driver's `sensor_msgs/SetCameraInfo` and report its answer"),
+              "send the live result to the driver's `sensor_msgs/SetCameraInfo` and report its answer with the "
+              "result's id (`result <id> (calibrated HH:MM:SS from N views): driver accepted ...`); refused when the "
+              'last `~/calibrate` failed after it (a stale result is not committed as if new) or there is none; '
+              "the only way the node changes the driver's camera_info file"),
     Interface('~/verify', 'srv', 'std_srvs/Trigger',
               'test the views collected since the last `~/reset` against the published calibration (this '
               "session's last result, else `calibration_file` with its `.calibration.json`) and, after a hand-eye "
@@ -93,7 +102,8 @@ CALIBRATION_NODE_INTERFACES = (
               'reason (too few views, no robot poses, nothing inside the trust region) and publishes nothing then'),
     Interface('~/suggested_tool_poses', 'pub', 'geometry_msgs/PoseArray',
               'reliable + transient local; the tool poses `~/suggest` ranked, best first, in `robot_base_frame` '
-              '(the tool frame in the base, as the robot poses; eye to hand: the tool carrying the target)'),
+              '(the tool frame in the base, as the robot poses; eye to hand: the tool carrying the target); '
+              'empty after `~/reset`'),
     Interface('~/suggested_tool_pose', 'pub', 'geometry_msgs/PoseStamped',
               'reliable + transient local; the best of them'),
     Interface('~/skip_suggestion', 'srv', 'std_srvs/Trigger',

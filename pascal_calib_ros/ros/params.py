@@ -51,15 +51,29 @@ PARAMS = (
           'camera_name written to the YAML and CameraInfo consumers; stereo: `NAME/left` and `NAME/right` (as '
           "`camera_calibration`'s stereo files)",),
     Param('output_dir', '',
-          'keep accepted frames (`frames/<view name>.png`), the YAML, `calibration.json` and, after each successful'
-          ' `~/calibrate`, the report (`report.pdf`, `report.png`, `report.json`, see Calibration report) here; '
+          'where results go: each successful `~/calibrate` writes one result set, `results/<id>/` (the YAML, '
+          '`<camera_name>.calibration.json`, `hand_eye.yaml`; with `output_dir` set also `calibration.json` and the '
+          'report, see Calibration report), published at once by pointing `current` at it; `<camera_name>.yaml` '
+          'and `hand_eye.yaml` in the folder are links through `current` (a kill never leaves a mixed set); '
           'stereo: `left/<shot>.png` and `right/<shot>.png` (the input of `pascal-calib stereo`), `left.yaml`, '
           '`right.yaml`, `stereo.yaml`, `left.calibration.json`, `right.calibration.json` and `report/`; default '
-          '`~/.ros/camera_info/<camera_name>/` (the files only); `~` is expanded; a frame that cannot be written '
-          'is logged and counted in `~/status` (`frames_not_saved`)',),
+          "`~/.ros/pascal_calib/<camera_name>/` (nothing is written to the driver's `~/.ros/camera_info/` but "
+          'through `~/commit`); `~` is expanded',),
     Param('calibration_file', '',
-          'YAML path (`~` is expanded); default `<output_dir>/<camera_name>.yaml`, else '
-          '`~/.ros/camera_info/<camera_name>.yaml`',
+          'also copy each new camera YAML (and its `.calibration.json`) to this path (`~` is expanded); '
+          '`~/verify` reads it when the session has no result yet; default: `<output_dir>/<camera_name>.yaml`',
+          modes=MONO),
+    Param('record_session', 'auto',
+          'write every stored view as it is taken (the frame, its stamp and robot pose, and a manifest; see '
+          'Sessions) into `session_dir`: `auto` with `collect:=on_capture` or `output_dir`, `on`, `off`',
+          choices=('auto', 'on', 'off'), modes=MONO),
+    Param('session_dir', '',
+          'the session folder; default `<output_dir or ~/.ros/pascal_calib/<camera_name>>/sessions/<time>`, named '
+          'in `~/status` (`session_folder`); `~` is expanded', modes=MONO),
+    Param('resume', False,
+          'continue the views of an existing session folder (`session_dir`, or the newest under the default '
+          'sessions folder): they are detected again and stored before the first frame; the folder must have been'
+          ' recorded with the same target, camera_name, distortion_model, gamma, hand_eye and robot frames',
           modes=MONO),
     Param('zero_skew', True,
           'estimate K with zero skew',),
@@ -119,8 +133,8 @@ PARAMS = (
           'child frame of the published hand-eye transform', modes=MONO),
     Param('hand_eye', '',
           '`eye_in_hand` / `eye_to_hand`: `~/calibrate` also solves hand-eye (needs `robot_pose_topic`), publishes '
-          '`~/hand_eye` and CameraInfo, writes `hand_eye.yaml` beside the camera YAML '
-          '(`<camera_name>_hand_eye.yaml` in `~/.ros/camera_info/`), and answers `hand_eye <mode>: <parent> -> '
+          '`~/hand_eye` and CameraInfo, writes `hand_eye.yaml` into the result set beside the camera YAML '
+          '(`output_dir`), and answers `hand_eye <mode>: <parent> -> '
           '<camera> t=[..] m std=[..] mm (arm accuracy share [..] mm) q=[..] rot_std=[..] deg views_used=N/M rms= '
           'robot_error= yaml=; camera: ...`. Nothing is published if it fails: fewer than 3 views with a pose, '
           'degenerate motions, a solver error, a non-finite result, or σ above 5 mm / 0.5°',
@@ -177,9 +191,10 @@ PARAMS = (
 )
 
 
-READ_ONLY = {"mode", "transport", "robot_pose_topic", "guide", "left_set_camera_info_service",
+READ_ONLY = {"mode", "transport", "robot_pose_topic", "guide", "record_session", "session_dir", "resume",
+             "left_set_camera_info_service",
              "right_set_camera_info_service"}
-PATHS = {"output_dir", "calibration_file"}  # a leading `~` is expanded when the node reads them
+PATHS = {"output_dir", "calibration_file", "session_dir"}  # a leading `~` is expanded when the node reads them
 
 
 def param_value(node: Any, name: str) -> Any:

@@ -25,6 +25,7 @@ from rclpy.node import Node
 from ..errors import PascalCalibError
 from ..workflows.static_transform import ResultFileError, StaticTransform, read_result_transform
 from .conversions import transform_msg
+from .guard import guarded_callback
 from .tf_static import TF_STATIC, StaticTransforms
 
 PARAMS: tuple[tuple[str, Any, str], ...] = (
@@ -57,7 +58,7 @@ class PublisherNode(Node):
         self._load(at_start=True)
         period = float(self.get_parameter("watch_period").value)
         if period > 0:
-            self.create_timer(period, self._check)
+            self.create_timer(period, guarded_callback(self, "file check", self._check))
 
     def _read(self) -> tuple[str, StaticTransform]:
         """The file's checksum and transform (:class:`ResultFileError` when it cannot be broadcast)."""

@@ -49,6 +49,7 @@ from ..errors import PascalCalibError
 from ..io.bags import COMPRESSED_TYPE, POSE_TYPE, BagError, BagImage, BagPose, pose_topics, read_session
 from ..io.image_msgs import grey_to_image_fields
 from ..io.images import IMAGE_SUFFIXES, ImageReadError, read_grey
+from .guard import guarded_callback
 from .stereo_replay import STEREO_PARAMS, StereoReplayError, StereoSource, replay_stereo, requested, stereo_publishers
 
 PARAMS: tuple[tuple[str, Any, str], ...] = (
@@ -111,7 +112,8 @@ class ReplayNode(Node):
             self.ack_topic = self.resolve_topic_name(str(self.p("ack_topic")))
             ack_qos = QoSProfile(depth=5, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE,
                                  durability=DurabilityPolicy.TRANSIENT_LOCAL)
-            self.sub_ack = self.create_subscription(Header, self.ack_topic, self._on_ack, ack_qos)
+            self.sub_ack = self.create_subscription(Header, self.ack_topic,
+                                                    guarded_callback(self, "acknowledgement", self._on_ack), ack_qos)
             how = (f"lock-step: each frame once {self.ack_topic} acknowledges the previous "
                    f"(timeout {float(self.p('ack_timeout')):g} s; rate ignored)")
         else:

@@ -42,7 +42,7 @@ def status_message(node: CalibrationNode) -> DiagnosticArray:
         "views_accepted": n, "views_rejected": sum(rejected.values()), "ready": ready,
         "frames_received": node.frames_received, "frames_examined": node.frames_examined,
         "frames_dropped": node.frames_dropped, "frames_dropped_session": session_dropped,
-        "frames_bad": node.frames_bad, "frames_not_saved": node.frames_not_saved, "last_rejection": last_rej,
+        "frames_bad": node.frames_bad, "last_rejection": last_rej,
         "last_error": node.last_error,
         "frames_dropped_note": node.dropped_note(),
         **{f"coverage_{k}": round(v, 3) for k, v in cov.items()},
@@ -56,6 +56,7 @@ def status_message(node: CalibrationNode) -> DiagnosticArray:
     if node.p("hand_eye"):
         kv["hand_eye"] = node.hand_eye_line
         kv["tf_static"] = node.tf_static.describe()
+    kv.update(node.recording.status())
     kv["verify"] = node.verify_line
     kv.update(node.guide.status())
     st.values = [KeyValue(key=k, value=str(v)) for k, v in kv.items()]

@@ -46,6 +46,7 @@ from ..calibrate.options import CalibrationOptions
 from ..calibrate.result import CalibrationError
 from ..detect.target_detector import detect_target
 from ..errors import PascalCalibError
+from ..io.atomic import FileWriteError
 from ..io.image_msgs import ImageConversionError, compressed_to_grey, image_to_grey
 from ..session.collector import placement_points
 from ..session.frame_pairing import SIDES, ApproximatePairer, Dropped
@@ -53,6 +54,7 @@ from ..session.live import max_motion_of
 from ..session.stereo_live import StereoSession
 from ..targets import Target, resolve_target
 from ..workflows.detection import detection_params
+from ..workflows.result_set import ResultStore
 from ..workflows.stereo import StereoOutcome
 from ..workflows.stereo_session import (
     StereoSessionOptions,
@@ -317,10 +319,11 @@ class StereoCalibrationNode(Node):
         except (CalibrationError, PascalCalibError) as e:
             return self._refuse(f"{e} (nothing published; the previous result stays)")
         out_dir = stereo_output_dir(str(self.p("camera_name")), str(self.p("output_dir")))
-        try:
-            files = outcome.write(out_dir)
-        except OSError as e:
+        try:  # one result set (:mod:`..workflows.result_set`): a kill never leaves a mixed pair
+            rs = ResultStore(out_dir).write(outcome.write)
+        except (OSError, FileWriteError) as e:
             return self._refuse(f"cannot write the calibration files in {out_dir}: {e} (nothing published)")
+        files = [out_dir / n for n in rs.names]
         self._publish(outcome)
         self.result_line = answer_line(outcome, files)
         self.get_logger().info(f"stereo calibrated: {self.result_line}")

@@ -11,6 +11,7 @@ a calibration cannot start yet (:meth:`LiveSession.refusal`).
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,6 +22,9 @@ from ..geometry.transform import Transform
 from .arm_session import MOVING, CaptureSlot, PoseBuffer, StillnessGate, capture_is_final, stored_message
 from .collector import ViewCollector
 from .overlay import draw_live_overlay
+
+Persist = Callable[[Detection, "Transform | None"], str]  # writes a stored view; says what it did
+NOT_WRITTEN = "not written"  # how a failed ``persist`` answer starts
 
 MOTION_AUTO_PX = 0.5  # the stillness threshold of robot sessions when max_motion_px is -1 (auto)
 GUIDED_MOTION_AUTO_PX = 2.0  # a guided hand-held session (auto): still enough for a person holding the target
@@ -59,6 +63,8 @@ class FrameOutcome:
     views: int
     ready: bool
     overlay: tuple[list[np.ndarray], dict[str, float], int] | None  # footprints, coverage, min views
+    robot_pose: Transform | None = None  # the stored view's robot pose
+    written: str = ""  # what became of the stored view on the disk (``persist``'s answer)
 
 
 class LiveSession:
@@ -81,9 +87,12 @@ class LiveSession:
             self.collector.reject(f"bad frame: {reason}")
 
     def examine(self, det: Detection, stamp_ns: int, poses: PoseBuffer | None, pose_max_age: float,
-                received_at: float, drawing: bool, guide: tuple[bool, str] | None = None) -> FrameOutcome:
+                received_at: float, drawing: bool, guide: tuple[bool, str] | None = None,
+                persist: Persist | None = None) -> FrameOutcome:
         """Apply the session's policy to one frame's detection (module docstring); ``drawing``: also
-        return what the live picture needs. ``guide`` (a guided session, :mod:`.guided_live`): with
+        return what the live picture needs; ``persist``: writes a stored view (its detection and robot
+        pose) before a waiting ``~/capture`` is answered, and says what it did (an error is appended to
+        the answer: the view stays in memory). ``guide`` (a guided session, :mod:`.guided_live`): with
         ``collect="auto"`` a usable, still frame is stored only when ``guide[0]`` (it matches the
         suggestion; then whatever it resembles), else its line says ``guide[1]``."""
         verdict = self.gate.examine(det, stamp_ns, poses, pose_max_age)
@@ -125,10 +134,21 @@ class LiveSession:
                 self.footprints.extend(view_hulls([feature_points(det)]))
             overlay = (list(self.footprints), col.coverage(), col.min_views) if drawing else None
             n, ready = len(col.views), col.ready
+        written = persist(det, verdict.robot_pose) if accepted and persist is not None else ""
+        if answer is not None and written.startswith(NOT_WRITTEN):
+            answer = (answer[0], f"{answer[1]}; {written}")
         if capture is not None and answer is not None:
             self.captures.finish(capture, *answer)
         return FrameOutcome(accepted=accepted, why=why, verdict_ok=verdict.usable and (accepted or capture is None),
-                            capture_answer=answer, views=n, ready=ready, overlay=overlay)
+                            capture_answer=answer, views=n, ready=ready, overlay=overlay,
+                            robot_pose=verdict.robot_pose if accepted else None, written=written)
+
+    def restore(self, det: Detection, robot_pose: Transform | None) -> None:
+        """Store a view of a resumed session (already chosen once: whatever it resembles)."""
+        with self.lock:
+            accepted, _ = self.collector.offer(det, robot_pose, force=True)
+            if accepted:
+                self.footprints.extend(view_hulls([feature_points(det)]))
 
     def picture(self, img: np.ndarray, det: Detection, outcome: FrameOutcome) -> np.ndarray | None:
         """The ``~/detections`` picture of a frame (None when nobody watches)."""

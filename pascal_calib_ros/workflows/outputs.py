@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -16,10 +17,12 @@ from ..detect.detection import Detection
 from ..geometry.camera import rectified_projection
 from ..io.calibration_json import sidecar_path, write_calibration_json
 from ..io.camera_yaml import CameraInfoData, write_camera_yaml
+from ..io.hand_eye_yaml import HandEyeRecord, write_hand_eye_yaml
 from ..report.pages import ReportFiles, write_report
 from ..report.text import summary_line
 from .calibration_record import record_of_calibration
 
+HAND_EYE_FILE = "hand_eye.yaml"
 ImageSource = Callable[[str], "np.ndarray | None"]  # a view's name -> its grey image (None: not at hand)
 
 
@@ -30,22 +33,20 @@ def camera_info_data(res: CalibrationResult, camera_name: str) -> CameraInfoData
                           P=rectified_projection(res.camera()))
 
 
+def output_folder(camera_name: str, output_dir: str = "") -> Path:
+    """Where a node's results and sessions go: ``output_dir``, else ``~/.ros/pascal_calib/<camera_name>``
+    (never the driver's ``~/.ros/camera_info/``: that file changes only through ``~/commit``)."""
+    if output_dir:
+        return Path(output_dir).expanduser()
+    return Path.home() / ".ros" / "pascal_calib" / camera_name
+
+
 def calibration_file_path(camera_name: str, output_dir: str = "", calibration_file: str = "") -> Path:
-    """Where the camera YAML goes: ``calibration_file``, else ``<output_dir>/<camera_name>.yaml``,
-    else ``~/.ros/camera_info/<camera_name>.yaml`` (camera_info_manager's default)."""
+    """The camera YAML a node reads back: ``calibration_file``, else ``<output folder>/<camera_name>.yaml``
+    (:func:`output_folder`; a link to the current result set, :mod:`.result_set`)."""
     if calibration_file:
         return Path(calibration_file).expanduser()
-    if output_dir:
-        return Path(output_dir).expanduser() / f"{camera_name}.yaml"
-    return Path.home() / ".ros" / "camera_info" / f"{camera_name}.yaml"
-
-
-def hand_eye_file_path(camera_yaml: Path, camera_name: str) -> Path:
-    """``hand_eye.yaml`` beside the camera YAML, or ``<camera_name>_hand_eye.yaml`` in
-    ``~/.ros/camera_info/`` (one folder for every camera)."""
-    if camera_yaml.parent == Path.home() / ".ros" / "camera_info":
-        return camera_yaml.parent / f"{camera_name}_hand_eye.yaml"
-    return camera_yaml.parent / "hand_eye.yaml"
+    return output_folder(camera_name, output_dir) / f"{camera_name}.yaml"
 
 
 def write_camera_file(res: CalibrationResult, path: str | Path, camera_name: str) -> Path:
@@ -75,3 +76,30 @@ def write_calibration_record(a: Assessment, camera_yaml: str | Path, camera_name
     """``CAM.calibration.json`` beside the camera YAML (:mod:`..io.calibration_json`): the covariance
     ``pascal-calib verify`` tests against and the observed field ``export --region`` refits over."""
     return write_calibration_json(sidecar_path(camera_yaml), record_of_calibration(a, camera_name))
+
+
+def write_result_files(folder: Path, a: Assessment, camera_name: str, hand_eye: HandEyeRecord | None = None,
+                       report: ReportRequest | None = None) -> list[str]:
+    """One result's files in ``folder`` (a result set's staging folder, :mod:`.result_set`): the camera
+    YAML, its calibration record, ``hand_eye.yaml`` and, on request, ``calibration.json`` and the
+    report. Returns the warnings (a report that failed: it must never cost the calibration)."""
+    path = write_camera_file(a.result, folder / f"{camera_name}.yaml", camera_name)
+    write_calibration_record(a, path, camera_name)
+    if hand_eye is not None:
+        write_hand_eye_yaml(folder / HAND_EYE_FILE, hand_eye)
+    if report is None:
+        return []
+    try:
+        write_session_files(a, report.views, folder, report.images, hand_eye=report.hand_eye)
+    except Exception as e:  # a report must never cost the calibration
+        return [f"report not written: {type(e).__name__}: {e}"]
+    return []
+
+
+@dataclass(frozen=True)
+class ReportRequest:
+    """What the report of a result needs: the views, their images, the hand-eye result if any."""
+
+    views: list[Detection]
+    images: ImageSource | None
+    hand_eye: Any = None

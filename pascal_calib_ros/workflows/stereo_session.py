@@ -52,9 +52,9 @@ class StereoSessionOptions:
 
 
 def stereo_output_dir(camera_name: str, output_dir: str = "") -> Path:
-    """Where a stereo session's files go: ``output_dir``, else ``~/.ros/camera_info/<camera_name>/``
-    (camera_info_manager's default place for cameras named ``<camera_name>/left`` and ``/right``)."""
-    return Path(output_dir).expanduser() if output_dir else Path.home() / ".ros" / "camera_info" / camera_name
+    """Where a stereo session's results go: ``output_dir``, else ``~/.ros/pascal_calib/<camera_name>/``
+    (never the drivers' ``~/.ros/camera_info/``: their files change only through ``~/commit``)."""
+    return Path(output_dir).expanduser() if output_dir else Path.home() / ".ros" / "pascal_calib" / camera_name
 
 
 def stereo_doubts(outcome: StereoOutcome) -> list[str]:

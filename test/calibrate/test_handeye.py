@@ -404,3 +404,36 @@ def test_charuco_hand_eye_within_sigma() -> None:
     t_mm, r_deg, _, _ = hand_eye_errors(res.hand_eye, s.hand_eye)
     assert t_mm < 4 * float(np.linalg.norm(res.translation_std_mm)) and t_mm < 1.0, (t_mm, res.translation_std_mm)
     assert r_deg < 4 * float(np.linalg.norm(res.rotation_std_deg)) and r_deg < 0.1, (r_deg, res.rotation_std_deg)
+
+
+def test_cli_recomputes_a_recorded_session_folder(arm_session, tmp_path: Path) -> None:
+    """A session folder the node recorded (frames, robot poses, manifest) is recomputed offline by
+    ``handeye SESSION`` with the settings it was recorded with, and gives the result of the same
+    views and poses given as images and POSES.yaml."""
+    from pascal_calib_ros.io.session_folder import SessionFolder, SessionManifest
+
+    s, _ = arm_session
+    folder = SessionFolder.create(tmp_path / "session", SessionManifest(
+        "ring_a4", "wrist", "plumb_bob", 1.0, "eye_in_hand", "base_link", "tool0"))
+    imgs = tmp_path / "imgs"
+    imgs.mkdir()
+    for k, (name, im, pose) in enumerate(zip(s.names, s.images["ring_a4"], s.robot_poses, strict=True)):
+        folder.record(Path(name).stem, im, k, pose)
+        cv2.imwrite(str(imgs / f"{Path(name).stem}.png"), im)
+    write_poses_yaml(tmp_path / "poses.yaml", "base_link", "tool0",
+                     {f"{Path(n).stem}.png": p for n, p in zip(s.names, s.robot_poses, strict=True)})
+    r = run("handeye", "-o", str(tmp_path / "a" / "cam.yaml"), str(tmp_path / "session"))
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "session " in r.stdout and "7 view(s), target ring_a4" in r.stdout
+    ref = run("handeye", "--target", "ring_a4", "--poses", str(tmp_path / "poses.yaml"), "--mode", "eye_in_hand",
+              "-o", str(tmp_path / "b" / "cam.yaml"), str(imgs))
+    assert ref.returncode == 0, ref.stdout + ref.stderr
+    a = yaml.safe_load((tmp_path / "a" / "hand_eye.yaml").read_text())
+    b = yaml.safe_load((tmp_path / "b" / "hand_eye.yaml").read_text())
+    assert a["translation"] == b["translation"] and a["rotation"] == b["rotation"]
+    assert yaml.safe_load((tmp_path / "a" / "cam.yaml").read_text())["camera_name"] == "wrist"
+    cal = run("calibrate", "-o", str(tmp_path / "c" / "cam.yaml"), str(tmp_path / "session"))
+    assert cal.returncode == 0 and "7 view(s)" in cal.stdout, cal.stdout + cal.stderr
+    (tmp_path / "session" / "session.yaml").write_text("format: other\n")
+    bad = run("handeye", "-o", str(tmp_path / "d.yaml"), str(tmp_path / "session"))
+    assert bad.returncode == 2 and "not a session file" in bad.stderr

@@ -80,7 +80,7 @@ def test_arm_session_capture_and_hand_eye(tmp_path: Path, arm_bag: tuple[Path, o
     bag, s = arm_bag
     dom = next_domain_id()
     cal = NodeProcess("calibration_node", {
-        "min_views": 6, "calibration_file": str(tmp_path / "cam.yaml"), "collect": "on_capture",
+        "min_views": 6, "output_dir": str(tmp_path), "camera_name": "cam", "collect": "on_capture",
         "robot_pose_topic": "/tool_pose", "hand_eye": "eye_in_hand", "capture_timeout": 3.0},
         dom, tmp_path / "cal.log")
     client = RosClient(dom)

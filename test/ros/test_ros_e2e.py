@@ -153,8 +153,16 @@ def test_folder_session_calibrate_commit_reset(tmp_path: Path, session: Path) ->
         _check_k(info[-1].k, _truth(session))
         doc = yaml.safe_load((tmp_path / "out" / "e2e_cam.yaml").read_text())
         assert doc["camera_name"] == "e2e_cam"
-        frames = {f.stem for f in (tmp_path / "out" / "frames").glob("*.png")}
-        assert len(frames) >= 6
+        # every stored view was written as it was taken into the session folder ~/status names
+        folder = Path(latest_status(status)["session_folder"])
+        assert folder.parent == tmp_path / "out" / "sessions", latest_status(status)
+        frames = {f.stem for f in (folder / "frames").glob("*.png")}
+        assert len(frames) >= 6 and len(yaml.safe_load((folder / "session.yaml").read_text())["views"]) == len(frames)
+        # one result set, labelled: the answer and ~/status name it; the files are links through current
+        rid = r.message.split("result=")[1].split()[0]
+        assert (tmp_path / "out" / "results" / rid / "e2e_cam.yaml").is_file(), r.message
+        assert client.spin_until(lambda: latest_status(status).get("result_id") == rid, 10), latest_status(status)
+        assert (tmp_path / "out" / "e2e_cam.yaml").resolve() == (tmp_path / "out" / "results" / rid / "e2e_cam.yaml")
         # the report of the calibration, its worst views read back from the stored frames by name
         assert (tmp_path / "out" / "report.pdf").stat().st_size > 10_000
         report = json.loads((tmp_path / "out" / "report.json").read_text())
@@ -178,7 +186,7 @@ def test_folder_session_calibrate_commit_reset(tmp_path: Path, session: Path) ->
 
         client.node.create_service(SetCameraInfo, "/camera/set_camera_info", serve)
         r = client.call_trigger("/pascal_calib/commit")
-        assert r.success and "stored" in r.message
+        assert r.success and "stored" in r.message and f"result {rid}" in r.message, r.message
         assert np.allclose(received[-1].k, info[-1].k)
         accept[0] = False
         r = client.call_trigger("/pascal_calib/commit")
@@ -188,6 +196,11 @@ def test_folder_session_calibrate_commit_reset(tmp_path: Path, session: Path) ->
         assert client.spin_until(lambda: latest_status(status).get("views_accepted") == "0", 5)
         r = client.call_trigger("/pascal_calib/calibrate")
         assert not r.success  # too few views again, and the last good result stays published
+        # a stale result is not committed as if it were new; ~/status says the last attempt failed
+        accept[0] = True
+        r = client.call_trigger("/pascal_calib/commit")
+        assert not r.success and "failed" in r.message and f"result {rid}" in r.message and "is older" in r.message
+        assert client.spin_until(lambda: latest_status(status).get("last_attempt", "").startswith("failed"), 5)
         r = client.call_trigger("/pascal_calib/verify")
         assert not r.success and "cannot test" in r.message, r.message
         late = camera_info_subscription(client)

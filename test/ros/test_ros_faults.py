@@ -75,11 +75,11 @@ class ArmStream:
 
 def test_pose_stamps_that_jump_do_not_block_captures(tmp_path: Path) -> None:
     dom = next_domain_id()
-    (tmp_path / "out").mkdir()
-    (tmp_path / "out" / "frames").write_text("a file where the frames folder should be")  # saving must fail
+    (tmp_path / "session").mkdir()
+    (tmp_path / "session" / "frames").write_text("a file where the frames folder should be")  # writing must fail
     cal = NodeProcess("calibration_node", {
         "collect": "on_capture", "robot_pose_topic": "/tool_pose", "capture_timeout": 4.0,
-        "output_dir": str(tmp_path / "out")}, dom, tmp_path / "cal.log")
+        "output_dir": str(tmp_path / "out"), "session_dir": str(tmp_path / "session")}, dom, tmp_path / "cal.log")
     client = RosClient(dom)
     try:
         status = status_subscription(client)
@@ -93,9 +93,11 @@ def test_pose_stamps_that_jump_do_not_block_captures(tmp_path: Path) -> None:
         kv = latest_status(status)
         assert "1 set aside for their stamps" in kv["robot_pose_buffer"], kv
         assert "stamped 3600 s after the frame: clock step or wrong stamps" in kv["robot_pose_buffer"], kv
-        # the frame could not be saved (output_dir/frames is a file): said and counted, the view is kept
-        assert client.spin_until(lambda: latest_status(status)["frames_not_saved"] == "1", 5), latest_status(status)
-        assert "frame not saved: cannot write" in latest_status(status)["last_error"], latest_status(status)
+        # the frame could not be written (session/frames is a file): said and counted, the view is kept
+        assert "not written to the session folder: cannot write" in r.message, r.message
+        assert client.spin_until(lambda: latest_status(status)["session_views_not_written"] == "1", 5), (
+            latest_status(status))
+        assert "not written to the session folder" in latest_status(status)["last_error"], latest_status(status)
         arm.shift_ns = -HOUR_NS  # a clock step back (a looped bag): frames and poses an hour earlier
         client.spin_until(lambda: False, 1.5)
         r = client.call_trigger("/pascal_calib/capture", timeout=15)
@@ -151,7 +153,8 @@ def test_guards_turn_an_exception_into_an_answer(tmp_path: Path) -> None:
     ctx = rclpy.Context()
     rclpy.init(context=ctx, domain_id=next_domain_id())
     node = CalibrationNode(context=ctx, parameter_overrides=[Parameter("output_dir", value="~/calib_x"),
-                                                             Parameter("calibration_file", value="~/c.yaml")])
+                                                             Parameter("calibration_file", value="~/c.yaml"),
+                                                             Parameter("record_session", value="off")])
     try:
         r = guarded_service(node, "~/verify", boom)(Trigger.Request(), Trigger.Response())
         assert not r.success and r.message == "~/verify failed: TypeError: int() argument must be a string, not " \
@@ -161,6 +164,8 @@ def test_guards_turn_an_exception_into_an_answer(tmp_path: Path) -> None:
         assert not refused.successful and "TypeError" in refused.reason
         assert node.p("output_dir") == os.path.expanduser("~/calib_x") and not node.p("output_dir").startswith("~")
         assert node.calibration_path() == Path(os.path.expanduser("~/c.yaml"))
+        assert node.recording.folder is None and not Path(os.path.expanduser("~/calib_x")).exists()
+        node.frames_not_saved = 0  # save_frame's counter (the stereo node's frames)
         (tmp_path / "frames").write_text("not a folder")
         assert not save_frame(node, tmp_path / "frames" / "v.png", np.zeros((4, 4), np.uint8))
         assert node.frames_not_saved == 1 and "frame not saved: cannot write" in node.last_error

@@ -195,6 +195,10 @@ def test_arm_loop_suggest_move_capture_reaches_done(tmp_path: Path) -> None:
         assert worst <= 3 * GOAL_PX and err_deg <= 3 * GOAL_DEG and err_mm <= 3 * GOAL_MM, (worst, err_deg, err_mm)
         assert "suggest_s" in latest_status(status) or client.spin_until(
             lambda: "suggest_s" in latest_status(status), 3)
+        # ~/reset clears the latched suggestions: a late subscriber gets no pose of the cleared session
+        assert client.call_trigger("/pascal_calib/reset").success
+        late = _latched(client, PoseArray, "/pascal_calib/suggested_tool_poses")
+        assert client.spin_until(lambda: bool(late), 10) and len(late[-1].poses) == 0, late
     finally:
         client.close()
         assert cal.stop() == 0, cal.log()

@@ -17,18 +17,19 @@ from pascal_calib_ros.workflows.outputs import (
     calibration_file_path,
     calibration_json,
     camera_info_data,
-    hand_eye_file_path,
+    output_folder,
     write_camera_file,
 )
 
 
-def test_file_paths_as_camera_info_manager_expects() -> None:
+def test_results_never_go_to_the_drivers_camera_info_folder() -> None:
+    """Without output_dir a node writes under ~/.ros/pascal_calib/<camera>; ~/.ros/camera_info (the
+    file the driver loads at its next start) changes only through ~/commit."""
     assert calibration_file_path("cam", "", "/x/c.yaml") == Path("/x/c.yaml")
     assert calibration_file_path("cam", "/out") == Path("/out/cam.yaml")
-    home = Path.home() / ".ros" / "camera_info"
-    assert calibration_file_path("cam") == home / "cam.yaml"
-    assert hand_eye_file_path(home / "cam.yaml", "cam") == home / "cam_hand_eye.yaml"
-    assert hand_eye_file_path(Path("/out/cam.yaml"), "cam") == Path("/out/hand_eye.yaml")
+    home = Path.home() / ".ros" / "pascal_calib" / "cam"
+    assert output_folder("cam") == home and calibration_file_path("cam") == home / "cam.yaml"
+    assert output_folder("cam", "~/x") == Path.home() / "x"
 
 
 def test_the_camera_yaml_and_json_of_a_calibration(ring_target: Target, ring_session, tmp_path: Path) -> None:

@@ -56,5 +56,5 @@ def test_files_records_and_answer(outcome: StereoOutcome, tmp_path: Path) -> Non
     line = answer_line(outcome, files)
     assert line.startswith("left: fx=") and "; right: fx=" in line and "X_right = R X_left + T: T=[-0.1" in line
     assert f"yaml={tmp_path / 'left.yaml'}, right.yaml, stereo.yaml" in line
-    assert stereo_output_dir("head", "") == Path.home() / ".ros" / "camera_info" / "head"
+    assert stereo_output_dir("head", "") == Path.home() / ".ros" / "pascal_calib" / "head"
     assert stereo_output_dir("head", str(tmp_path)) == tmp_path

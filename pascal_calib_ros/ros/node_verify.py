@@ -1,0 +1,48 @@
+"""``~/verify`` of the calibration node: the views collected since the last ``~/reset`` against the
+published calibration (and the hand-eye result), :mod:`..workflows.verify`."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from ..analysis.verify import Reference
+from ..errors import PascalCalibError
+from ..io.calibration_files import read_calibration_file
+from ..workflows.verify import hand_eye_reference_of_result, reference_of_file, reference_of_result, verify_views
+
+if TYPE_CHECKING:
+    from .calibration_node import CalibrationNode
+
+
+def run_verification(node: CalibrationNode) -> tuple[bool, str]:
+    """(success when the test could run, the answer starting with the verdict)."""
+    snap = node.session.snapshot()
+    try:
+        reference = verify_reference(node)
+    except PascalCalibError as e:
+        return False, f"nothing to verify against: {e}"
+    robot, he_ref = None, None
+    if node.hand_eye_result is not None:
+        he, parent, cam_frame = node.hand_eye_result
+        robot = list(snap.robot_poses)
+        he_ref = hand_eye_reference_of_result(he, parent, cam_frame, float(node.p("arm_accuracy_mm")),
+                                              float(node.p("arm_accuracy_length")))
+    try:
+        _, line = verify_views(snap.views, node.target, reference, robot, he_ref)
+    except PascalCalibError as e:
+        return False, f"the views cannot test the calibration: {e}"
+    except Exception as e:  # never let a numerical failure take the node down
+        node.get_logger().error(f"verification crashed: {type(e).__name__}: {e}")
+        return False, f"verification failed: {type(e).__name__}: {e}"
+    return True, line
+
+
+def verify_reference(node: CalibrationNode) -> Reference:
+    """The calibration under test: this session's last result, else the calibration file (with its
+    ``.calibration.json`` beside it for the covariance)."""
+    if node.result is not None:
+        return reference_of_result(node.result)
+    path = node.calibration_path()
+    if not path.exists():
+        raise PascalCalibError(f"no calibration in this session and no {path}: call ~/calibrate first")
+    return reference_of_file(read_calibration_file(path))
