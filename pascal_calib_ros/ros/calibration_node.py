@@ -14,23 +14,18 @@ good result is published on ``~/camera_info`` (and ``~/hand_eye``; reliable, tra
 
 from __future__ import annotations
 
-import threading
 import time
 from pathlib import Path
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import TransformStamped
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor
-from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 from sensor_msgs.srv import SetCameraInfo
 from std_msgs.msg import Header
-from std_srvs.srv import Trigger
 
 from ..calibrate.handeye import HandEyeOptions
 from ..calibrate.options import CalibrationOptions
@@ -42,7 +37,6 @@ from ..errors import PascalCalibError
 from ..io.image_msgs import ImageConversionError, compressed_to_grey, grey_to_image_fields, image_to_grey
 from ..session.collector import placement_points
 from ..session.live import LiveSession, Snapshot, max_motion_of
-from ..targets import Target, resolve_target
 from ..workflows.detection import detection_params
 from ..workflows.hand_eye import hand_eye_doubts, hand_eye_frames, run_hand_eye
 from ..workflows.intrinsic import run_intrinsic
@@ -56,12 +50,12 @@ from ..workflows.outputs import (
 from ..workflows.result_set import ResultSet
 from .commit import commit_camera_info
 from .conversions import camera_info_msg, transform_msg
-from .guard import guarded_callback, guarded_parameters, guarded_service
+from .guard import guarded_callback
 from .guide_services import NodeGuide
 from .image_subscription import MatchedImageSubscription
+from .node_base import LATCHED, CalibrationNodeBase
 from .node_session import FileWriteError, NodeSession
 from .node_verify import run_verification
-from .params import ParameterError, declare_parameters, param_value, params_for, validate_parameters
 from .robot_poses import RobotPoseInput
 from .status import status_message
 from .tf_static import StaticTransforms
@@ -69,19 +63,13 @@ from .tf_static import StaticTransforms
 # a frame waits at most this long (wall time, or pose_max_age if longer) for the robot pose published
 # for its stamp: the pose comes on another topic and may be late on a loaded machine
 POSE_ARRIVAL_WAIT_S = 1.0
-LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL,
-                     history=HistoryPolicy.KEEP_LAST)
 
 
-class CalibrationNode(Node):
+class CalibrationNode(CalibrationNodeBase):
+    MODE = "mono"
+
     def __init__(self, **kwargs: Any) -> None:
-        super().__init__("pascal_calib", **kwargs)
-        declare_parameters(self)
-        problems = validate_parameters(self.values(), {})
-        if problems:
-            raise ParameterError("invalid parameters: " + "; ".join(problems))
-        self.target: Target = resolve_target(self.p("target"))
-        self.add_on_set_parameters_callback(guarded_parameters(self, self._on_set_parameters))
+        super().__init__(**kwargs)
         self.pose_topic = str(self.p("robot_pose_topic"))
         self.session = LiveSession(self.p("min_views"), self.p("max_views"), self.p("min_view_distance"),
                                    max_motion_of(float(self.p("max_motion_px")), str(self.p("collect")),
@@ -91,25 +79,18 @@ class CalibrationNode(Node):
         self.result_msg: CameraInfo | None = None
         self.frames_received = self.frames_dropped = self.frames_bad = self.frames_examined = 0
         self._session_start = (0, 0)  # frames received / dropped before the last ~/reset
-        self.last_error = ""
         self.frame_id = "camera"
-        self.calibrating = threading.Lock()
-        self.auto_done_at = -1
         self.hand_eye_line = ""
         self.hand_eye_result: Any = None  # (HandEyeResult, parent frame, camera frame) of the last ~/calibrate
         self.verify_line = ""
         self.robot: RobotPoseInput | None = None
-        self._pending: Any = None
-        self._pending_cv = threading.Condition()
-        self._stop = threading.Event()
-        self._worker = threading.Thread(target=self._work, name="detector", daemon=True)
         self._create_interfaces()
         self.recording = NodeSession(self)  # the session folder (resume), the result sets and their labels
         resumed = self.recording.resume()
         if self.pose_topic:
             self.robot = RobotPoseInput(self, self.pose_topic, lambda: (str(self.p("robot_base_frame")),
                                                                         str(self.p("robot_tool_frame"))))
-        self._worker.start()
+        self.start()
         folder = self.recording.folder
         self.get_logger().info(
             f"target {self.target.name}, method {self.method}, listening on "
@@ -131,9 +112,8 @@ class CalibrationNode(Node):
         self.pub_hand_eye = self.create_publisher(TransformStamped, "~/hand_eye", LATCHED)
         self.tf_static = StaticTransforms(self)  # the hand-eye transform on /tf_static, with ~/hand_eye
         services = ReentrantCallbackGroup()
-        for name, srv in (("calibrate", self._srv_calibrate), ("reset", self._srv_reset), ("commit", self._srv_commit),
-                          ("capture", self._srv_capture), ("verify", self._srv_verify)):
-            self.create_service(Trigger, f"~/{name}", guarded_service(self, f"~/{name}", srv), callback_group=services)
+        self.add_services({"calibrate": self.run_calibration, "reset": self.reset, "commit": self.commit,
+                           "capture": self.capture, "verify": self.verify}, services)
         self.guide = NodeGuide(self, services, LATCHED)  # ~/suggest, ~/skip_suggestion, the person guide (guide:=true)
         self.set_info_client = self.create_client(SetCameraInfo, self.p("set_camera_info_service"),
                                                   callback_group=services)
@@ -142,32 +122,16 @@ class CalibrationNode(Node):
         self.image_sub = MatchedImageSubscription(self, self.topic, CompressedImage if compressed else Image,
                                                   guarded_callback(self, "image callback", self._on_image),
                                                   lambda: str(self.p("qos")), MutuallyExclusiveCallbackGroup())
-        for what, tick in (("image subscription check", self.image_sub.ensure), ("status", self.publish_status)):
-            self.create_timer(1.0, guarded_callback(self, what, tick), callback_group=MutuallyExclusiveCallbackGroup())
+        self.add_timers({"image subscription check": self.image_sub.ensure, "status": self.publish_status})
 
     # -- parameters ------------------------------------------------------------------
-    def p(self, name: str) -> Any:
-        return param_value(self, name)  # `~` expanded in output_dir and calibration_file
-
-    def values(self) -> dict[str, Any]:
-        return {p.name: self.p(p.name) for p in params_for("mono")}
-
-    @property
-    def method(self) -> str:
-        return str(self.p("method") or self.target.default_method())
-
     def calibration_path(self) -> Path:
         """Where this node's camera YAML is written and read (:func:`calibration_file_path`)."""
         return calibration_file_path(str(self.p("camera_name")), str(self.p("output_dir")),
                                      str(self.p("calibration_file")))
 
-    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
-        changes = {p.name: p.value for p in params}
-        problems = validate_parameters(changes, self.values())
-        if problems:
-            return SetParametersResult(successful=False, reason="; ".join(problems))
+    def apply_changes(self, changes: dict[str, Any]) -> None:
         if "target" in changes:
-            self.target = resolve_target(str(changes["target"]))
             self.session.clear()
         motion = None
         if "max_motion_px" in changes or "collect" in changes:
@@ -180,38 +144,21 @@ class CalibrationNode(Node):
             self.session.collect = str(changes["collect"])
         self.session.set_limits(changes.get("min_views"), changes.get("max_views"), changes.get("min_view_distance"),
                                 motion)
-        return SetParametersResult(successful=True)
 
     # -- image input ------------------------------------------------------------------
     def _on_image(self, msg: Any) -> None:
         """Executor callback: only hand the newest frame to the worker."""
         with self._pending_cv:
             self.frames_received += 1
-            if self._pending is not None:
+            if self.hand_over((msg, time.monotonic())):
                 self.frames_dropped += 1
-            self._pending = (msg, time.monotonic())
-            self._pending_cv.notify()
 
-    def _work(self) -> None:
-        while not self._stop.is_set():
-            with self._pending_cv:
-                while self._pending is None and not self._stop.is_set():
-                    self._pending_cv.wait(0.2)
-                pending, self._pending = self._pending, None
-            if pending is None:
-                continue
-            msg, received_at = pending
-            try:
-                self._process(msg, received_at)
-            except Exception as e:  # a bad frame must never stop the node
-                self.frames_bad += 1
-                self.last_error = f"frame processing failed: {type(e).__name__}: {e}"
-                self.get_logger().error(self.last_error)
-            finally:
-                self._acknowledge(msg)
+    def process(self, pending: Any) -> None:
+        self._process(*pending)
 
-    def _acknowledge(self, msg: Any) -> None:
+    def examined(self, pending: Any) -> None:
         """Count the examined frame and publish its header on ``~/examined_frames``."""
+        msg = pending[0]
         with self._pending_cv:
             self.frames_examined += 1
         try:
@@ -251,9 +198,7 @@ class CalibrationNode(Node):
             self.pub_det.publish(Image(header=msg.header, **grey_to_image_fields(vis)))
         if out.accepted:
             self.publish_status()
-        if out.ready and self.p("auto_calibrate") and self.auto_done_at != out.views and not self.calibrating.locked():
-            self.auto_done_at = out.views
-            threading.Thread(target=self.run_calibration, name="auto-calibrate", daemon=True).start()
+        self.auto_calibrate(out.ready, out.views)
 
     # -- status -------------------------------------------------------------------------
     def session_frames(self) -> tuple[int, int]:
@@ -279,20 +224,7 @@ class CalibrationNode(Node):
         return Header(stamp=self.get_clock().now().to_msg(), frame_id=self.frame_id)
 
     # -- calibration ------------------------------------------------------------------------
-    def run_calibration(self) -> tuple[bool, str]:
-        """One attempt; a failed one is labelled (``~/status``'s ``last_attempt``; ``~/commit`` then refuses)."""
-        if not self.calibrating.acquire(blocking=False):
-            return False, "a calibration is already running; try again when it finishes"
-        try:
-            ok, answer = self._attempt()
-        finally:
-            self.calibrating.release()
-        if not ok:
-            self.recording.history.attempt_failed(answer)
-            self.publish_status()
-        return ok, answer
-
-    def _attempt(self) -> tuple[bool, str]:
+    def attempt(self) -> tuple[bool, str]:
         try:
             snap = self.session.snapshot()
             if len(snap.views) < snap.min_views:
@@ -324,7 +256,7 @@ class CalibrationNode(Node):
         self._publish_camera(res)
         answer = out.answer(str(self.calibration_path())) + f" result={rs.id}"
         for line in out.cross_validation_lines:
-            self._log(line, out.halves_agree is True)
+            self.log(line, out.halves_agree is True)
         self.get_logger().info(f"calibrated: {answer}")
         self.publish_status()
         return True, answer
@@ -395,36 +327,30 @@ class CalibrationNode(Node):
         return rs
 
     # -- services -------------------------------------------------------------------------
-    def _srv_calibrate(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
-        resp.success, resp.message = self.run_calibration()
-        return resp
-
-    def _srv_capture(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
+    def capture(self) -> tuple[bool, str]:
+        """``~/capture``: store the next still frame (:class:`..session.arm_session.CaptureSlot`)."""
         timeout = float(self.p("capture_timeout"))
         captures = self.session.captures
         capture = captures.open(timeout)
         if capture is None:
-            resp.success, resp.message = False, "a capture is already waiting for a still frame; try again"
-            return resp
-        resp.success, resp.message = captures.wait(capture, timeout)
-        self._log(f"capture: {resp.message}", resp.success)
+            return False, "a capture is already waiting for a still frame; try again"
+        ok, answer = captures.wait(capture, timeout)
+        self.log(f"capture: {answer}", ok)
         self.publish_status()
-        return resp
+        return ok, answer
 
-    def _srv_verify(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
-        resp.success, resp.message = self.run_verification()
-        self._log(f"verify: {resp.message}", resp.success)
-        self.publish_status()
-        return resp
-
-    def run_verification(self) -> tuple[bool, str]:
-        """The views collected since the last ~/reset against the published calibration (:mod:`.node_verify`)."""
+    def verify(self) -> tuple[bool, str]:
+        """``~/verify``: the views collected since the last ~/reset against the published calibration
+        (:mod:`.node_verify`)."""
         ok, line = run_verification(self)
         if ok:
             self.verify_line = line
+        self.log(f"verify: {line}", ok)
+        self.publish_status()
         return ok, line
 
-    def _srv_reset(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
+    def reset(self) -> tuple[bool, str]:
+        """``~/reset``: the views, the pose buffer, the latched suggestions; the session folder starts over."""
         n = self.session.clear()
         if self.robot is not None:  # a session's stamps start over (a looped bag, a restarted driver)
             self.robot.poses.clear()
@@ -434,38 +360,24 @@ class CalibrationNode(Node):
         with self._pending_cv:
             self._session_start = (self.frames_received, self.frames_dropped)
         running = " (a running calibration finishes on its own copy of the views)" if self.calibrating.locked() else ""
-        live = self.recording.history.live
-        resp.success, resp.message = True, (f"cleared {n} view(s){running}{kept}; the live "
-                                            f"{live.describe() if live else 'result: none'} is kept")
-        self.get_logger().info(resp.message)
+        live = self.history.live
+        answer = (f"cleared {n} view(s){running}{kept}; the live {live.describe() if live else 'result: none'} "
+                  "is kept")
+        self.get_logger().info(answer)
         self.publish_status()
-        return resp
+        return True, answer
 
-    def _srv_commit(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
-        problem = self.recording.history.commit_problem()
+    def commit(self) -> tuple[bool, str]:
+        """``~/commit``: the live result to the driver, unless it is stale (:mod:`..session.result_history`)."""
+        problem = self.history.commit_problem()
         if problem:
-            resp.success, resp.message = False, problem
+            ok, answer = False, problem
         else:
-            live = self.recording.history.live
-            resp.success, resp.message = commit_camera_info(self.set_info_client, self.result_msg)
-            resp.message = f"{live.describe() if live else 'result'}: {resp.message}"
-        self._log(resp.message, resp.success)
-        return resp
-
-    def _log(self, message: str, ok: bool) -> None:
-        """Info when ``ok``, else a warning (rclpy wants one severity per call site)."""
-        if ok:
-            self.get_logger().info(message)
-        else:
-            self.get_logger().warn(message)
-
-    def stop(self) -> None:
-        """Stop the detector thread (called before the node is destroyed)."""
-        self._stop.set()
-        with self._pending_cv:
-            self._pending_cv.notify_all()
-        if self._worker.is_alive():
-            self._worker.join(timeout=5.0)
+            live = self.history.live
+            ok, answer = commit_camera_info(self.set_info_client, self.result_msg)
+            answer = f"{live.describe() if live else 'result'}: {answer}"
+        self.log(answer, ok)
+        return ok, answer
 
 
 def main(args: list[str] | None = None) -> int:

@@ -218,7 +218,7 @@ class NodeGuide:
             self.node.get_logger().error(f"suggest crashed: {type(e).__name__}: {e}")
             resp.success, resp.message = False, f"no suggestion: {type(e).__name__}: {e}"
         self.last_seconds = time.perf_counter() - t0
-        self.node._log(f"suggest ({self.last_seconds:.2f} s): {resp.message}", resp.success)
+        self.node.log(f"suggest ({self.last_seconds:.2f} s): {resp.message}", resp.success)
         return resp
 
     def options(self) -> SuggestOptions:

@@ -43,7 +43,9 @@ CALIBRATION_NODE_INTERFACES = (
               'readiness threshold), the view count and `READY` or what is missing; with `guide:=true` also the '
               "suggested view's outline (cyan, green when matched) and, at the bottom, `match 0.62 (need 0.85): "
               "move the target left`, `sigma now 0.412 px, goal 0.1 px` and the next view in words (or `computing "
-              "the next view...`, `DONE: call ~/calibrate`); only drawn while someone "
+              "the next view...`, `DONE: call ~/calibrate`), and in the panel, below the coverage bars, the guide's "
+              "progress instead of `cover more`: `guide 40%` and a bar, the goal over the real sigma (full at the "
+              "goal; the one notion of progress a guided person follows); only drawn while someone "
               'subscribes (`ros2 run rqt_image_view rqt_image_view /pascal_calib/detections`)'),
     Interface('~/camera_info', 'pub', 'sensor_msgs/CameraInfo',
               'reliable + transient local (a late subscriber gets it); K, D and `distortion_model` (`plumb_bob`, '

@@ -16,7 +16,6 @@ from ..io.atomic import FileWriteError
 from ..io.calibration_json import sidecar_path
 from ..io.session_folder import SessionFolder, SessionFolderError, SessionManifest, is_session_folder
 from ..session.live import NOT_WRITTEN
-from ..session.result_history import ResultHistory
 from ..workflows.detection import detection_params
 from ..workflows.outputs import output_folder
 from ..workflows.result_set import ResultSet, ResultStore, copy_atomic
@@ -59,7 +58,6 @@ class NodeSession:
 
     def __init__(self, node: CalibrationNode) -> None:
         self.node = node
-        self.history = ResultHistory()
         self.folder: SessionFolder | None = None
         self.not_written = 0
         self.last_error = ""
@@ -157,11 +155,11 @@ class NodeSession:
             sidecar = sidecar_path(rs.path(name))
             if sidecar.exists():
                 copy_atomic(sidecar, sidecar_path(Path(target).expanduser()))
-        self.history.succeeded(rs.id, views)
+        self.node.history.succeeded(rs.id, views)
         return rs
 
     def status(self) -> dict[str, Any]:
-        out: dict[str, Any] = dict(self.history.status())
+        out: dict[str, Any] = dict(self.node.history.status())
         out["session_folder"] = str(self.folder.path) if self.folder is not None else "(not recording)"
         if self.folder is not None:
             out["session_views_written"] = len(self.folder.views)

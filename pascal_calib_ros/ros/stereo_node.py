@@ -24,7 +24,6 @@ calibration records). ``~/commit`` sends each camera's CameraInfo to its own dri
 
 from __future__ import annotations
 
-import threading
 import time
 from functools import partial
 from pathlib import Path
@@ -32,15 +31,11 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import TransformStamped
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
-from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 from sensor_msgs.srv import SetCameraInfo
 from std_msgs.msg import Header
-from std_srvs.srv import Trigger
 
 from ..calibrate.options import CalibrationOptions
 from ..calibrate.result import CalibrationError
@@ -52,7 +47,6 @@ from ..session.collector import placement_points
 from ..session.frame_pairing import SIDES, ApproximatePairer, Dropped
 from ..session.live import max_motion_of
 from ..session.stereo_live import StereoSession
-from ..targets import Target, resolve_target
 from ..workflows.detection import detection_params
 from ..workflows.result_set import ResultStore
 from ..workflows.stereo import StereoOutcome
@@ -65,49 +59,38 @@ from ..workflows.stereo_session import (
 )
 from .commit import commit_pair
 from .conversions import camera_info_msg, image_msg, transform_msg
-from .guard import guarded_callback, guarded_parameters, guarded_service, save_frame
+from .guard import guarded_callback, save_frame
 from .image_subscription import MatchedImageSubscription
-from .params import ParameterError, declare_parameters, param_value, params_for, validate_parameters
+from .node_base import LATCHED, CalibrationNodeBase
+from .params import ParameterError
 from .stereo_status import stereo_status_message
 from .tf_static import StaticTransforms
-
-LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL,
-                     history=HistoryPolicy.KEEP_LAST)
 
 
 def _stamp_ns(msg: Any) -> int:
     return int(msg.header.stamp.sec) * 10**9 + int(msg.header.stamp.nanosec)
 
 
-class StereoCalibrationNode(Node):
+class StereoCalibrationNode(CalibrationNodeBase):
+    MODE = "stereo"
+    input_name = "pair"
+
     def __init__(self, **kwargs: Any) -> None:
-        super().__init__("pascal_calib", **kwargs)
-        declare_parameters(self, "stereo")
-        problems = validate_parameters(self.values(), {})
-        if problems:
-            raise ParameterError("invalid parameters: " + "; ".join(problems))
-        self.target: Target = resolve_target(self.p("target"))
-        self.add_on_set_parameters_callback(guarded_parameters(self, self._on_set_parameters))
+        super().__init__(**kwargs)
         self.session = StereoSession(self.p("min_views"), self.p("max_views"), self.p("min_view_distance"),
                                      max_motion_of(float(self.p("max_motion_px")), "auto", False),
                                      board_points=placement_points(self.target))
         self.pairer = ApproximatePairer(float(self.p("sync_slop")))
         self.outcome: StereoOutcome | None = None
         self.info_msgs: tuple[CameraInfo, CameraInfo] | None = None
-        self.result_line = self.last_error = self.report_note = ""
+        self.result_line = self.report_note = ""
         self.frame_ids = ["", ""]
         self.frames_bad = [0, 0]
         self.frames_not_saved = 0  # stored frames output_dir could not take (save_frame)
         self.pairs_examined = self.pairs_dropped = 0
         self._session_start = 0  # pairs dropped before the last ~/reset
-        self.calibrating = threading.Lock()
-        self.auto_done_at = -1
-        self._pending: Any = None
-        self._pending_cv = threading.Condition()
-        self._stop = threading.Event()
-        self._worker = threading.Thread(target=self._work, name="detector", daemon=True)
         self._create_interfaces()
-        self._worker.start()
+        self.start()
         topics = ", ".join(f"{s.resolved} ({s.qos_name})" for s in self.subs)
         self.get_logger().info(
             f"stereo: target {self.target.name}, listening on {topics}, pairing stamps within sync_slop "
@@ -126,8 +109,7 @@ class StereoCalibrationNode(Node):
                                   durability=DurabilityPolicy.TRANSIENT_LOCAL, history=HistoryPolicy.KEEP_LAST)
         self.pub_examined = self.create_publisher(Header, "~/examined_frames", examined_qos)
         services = ReentrantCallbackGroup()
-        for name, srv in (("calibrate", self._srv_calibrate), ("reset", self._srv_reset), ("commit", self._srv_commit)):
-            self.create_service(Trigger, f"~/{name}", guarded_service(self, f"~/{name}", srv), callback_group=services)
+        self.add_services({"calibrate": self.run_calibration, "reset": self.reset, "commit": self.commit}, services)
         self.set_info_clients = (
             self.create_client(SetCameraInfo, self.p("left_set_camera_info_service"), callback_group=services),
             self.create_client(SetCameraInfo, self.p("right_set_camera_info_service"), callback_group=services))
@@ -141,27 +123,11 @@ class StereoCalibrationNode(Node):
             CompressedImage if compressed else Image, guarded_callback(self, f"{side} image callback",
                                                                        partial(self._on_image, c)),
             lambda: str(self.p("qos")), group) for c, side in enumerate(SIDES))
-        for what, tick in (("image subscription check", self._ensure_subscriptions), ("status", self.publish_status)):
-            self.create_timer(1.0, guarded_callback(self, what, tick), callback_group=MutuallyExclusiveCallbackGroup())
+        self.add_timers({"image subscription check": self._ensure_subscriptions, "status": self.publish_status})
 
     # -- parameters ------------------------------------------------------------------
-    def p(self, name: str) -> Any:
-        return param_value(self, name)  # `~` expanded in output_dir and calibration_file
-
-    def values(self) -> dict[str, Any]:
-        return {p.name: self.p(p.name) for p in params_for("stereo")}
-
-    @property
-    def method(self) -> str:
-        return str(self.p("method") or self.target.default_method())
-
-    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
-        changes = {p.name: p.value for p in params}
-        problems = validate_parameters(changes, self.values())
-        if problems:
-            return SetParametersResult(successful=False, reason="; ".join(problems))
+    def apply_changes(self, changes: dict[str, Any]) -> None:
         if "target" in changes:
-            self.target = resolve_target(str(changes["target"]))
             self.session.clear()
         if "sync_slop" in changes:
             with self._pending_cv:
@@ -171,7 +137,6 @@ class StereoCalibrationNode(Node):
             motion = max_motion_of(float(changes["max_motion_px"]), "auto", False)
         self.session.set_limits(changes.get("min_views"), changes.get("max_views"), changes.get("min_view_distance"),
                                 motion)
-        return SetParametersResult(successful=True)
 
     # -- image input ------------------------------------------------------------------
     def _ensure_subscriptions(self) -> None:
@@ -183,11 +148,8 @@ class StereoCalibrationNode(Node):
         with self._pending_cv:
             pairs, dropped = self.pairer.push(side, _stamp_ns(msg), (msg, time.monotonic()))
             for left, right in pairs:
-                if self._pending is not None:
+                if self.hand_over((left.item[0], right.item[0], max(left.item[1], right.item[1]))):
                     self.pairs_dropped += 1
-                self._pending = (left.item[0], right.item[0], max(left.item[1], right.item[1]))
-            if pairs:
-                self._pending_cv.notify()
         self._acknowledge_dropped(dropped)
 
     def _acknowledge_dropped(self, dropped: list[Dropped]) -> None:
@@ -196,25 +158,14 @@ class StereoCalibrationNode(Node):
             self.get_logger().warn(self.last_error, throttle_duration_sec=5.0)
             self._acknowledge(d.frame.item[0])
 
-    def _work(self) -> None:
-        while not self._stop.is_set():
-            with self._pending_cv:
-                while self._pending is None and not self._stop.is_set():
-                    self._pending_cv.wait(0.2)
-                pending, self._pending = self._pending, None
-            if pending is None:
-                continue
-            left, right, _ = pending
-            try:
-                self._process(left, right)
-            except Exception as e:  # a bad pair must never stop the node
-                self.last_error = f"pair processing failed: {type(e).__name__}: {e}"
-                self.get_logger().error(self.last_error)
-            finally:
-                with self._pending_cv:
-                    self.pairs_examined += 1
-                self._acknowledge(left)
-                self._acknowledge(right)
+    def process(self, pending: Any) -> None:
+        self._process(pending[0], pending[1])
+
+    def examined(self, pending: Any) -> None:
+        with self._pending_cv:
+            self.pairs_examined += 1
+        self._acknowledge(pending[0])
+        self._acknowledge(pending[1])
 
     def _acknowledge(self, msg: Any) -> None:
         try:
@@ -254,9 +205,7 @@ class StereoCalibrationNode(Node):
         if out.stored:
             self.get_logger().info(out.why)
             self.publish_status()
-        if out.ready and self.p("auto_calibrate") and self.auto_done_at != out.both and not self.calibrating.locked():
-            self.auto_done_at = out.both
-            threading.Thread(target=self.run_calibration, name="auto-calibrate", daemon=True).start()
+        self.auto_calibrate(out.ready, out.both)
 
     # -- status -------------------------------------------------------------------------
     def pairs_dropped_session(self) -> int:
@@ -294,22 +243,11 @@ class StereoCalibrationNode(Node):
         return StereoSessionOptions(opts, float(self.p("alpha")), str(self.p("camera_name")), str(self.p("left_frame")),
                                     str(self.p("right_frame")))
 
-    def run_calibration(self) -> tuple[bool, str]:
-        if not self.calibrating.acquire(blocking=False):
-            return False, "a calibration is already running; try again when it finishes"
-        try:
-            return self._calibrate()
-        except Exception as e:  # never let a numerical failure take the node down
-            self.get_logger().error(f"stereo calibration crashed: {type(e).__name__}: {e}")
-            return False, f"stereo calibration failed: {type(e).__name__}: {e}"
-        finally:
-            self.calibrating.release()
-
     def _refuse(self, why: str) -> tuple[bool, str]:
         self.get_logger().warn(f"stereo calibration refused: {why}")
         return False, f"stereo calibration failed: {why}"
 
-    def _calibrate(self) -> tuple[bool, str]:
+    def attempt(self) -> tuple[bool, str]:
         snap = self.session.snapshot()
         if snap.both < snap.min_views:
             return self._refuse(self.session.refusal(snap, self.notes()))
@@ -324,6 +262,7 @@ class StereoCalibrationNode(Node):
         except (OSError, FileWriteError) as e:
             return self._refuse(f"cannot write the calibration files in {out_dir}: {e} (nothing published)")
         files = [out_dir / n for n in rs.names]
+        self.history.succeeded(rs.id, snap.both)
         self._publish(outcome)
         self.result_line = answer_line(outcome, files)
         self.get_logger().info(f"stereo calibrated: {self.result_line}")
@@ -354,33 +293,24 @@ class StereoCalibrationNode(Node):
             self.get_logger().warn(self.tf_static.unavailable, once=True)
 
     # -- services -------------------------------------------------------------------------
-    def _srv_calibrate(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
-        resp.success, resp.message = self.run_calibration()
-        return resp
-
-    def _srv_reset(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
+    def reset(self) -> tuple[bool, str]:
         n = self.session.clear()
         self.auto_done_at = -1
         with self._pending_cv:
             self._session_start = self.pairs_dropped
         running = " (a running calibration finishes on its own copy of the shots)" if self.calibrating.locked() else ""
-        resp.success, resp.message = True, f"cleared {n} shot(s){running}; the last result is kept"
-        self.get_logger().info(resp.message)
+        live = self.history.live
+        answer = f"cleared {n} shot(s){running}; the live {live.describe() if live else 'result: none'} is kept"
+        self.get_logger().info(answer)
         self.publish_status()
-        return resp
+        return True, answer
 
-    def _srv_commit(self, _req: Trigger.Request, resp: Trigger.Response) -> Trigger.Response:
-        resp.success, resp.message = commit_pair(self.set_info_clients, self.info_msgs)
-        if resp.success:
-            self.get_logger().info(f"commit: {resp.message}")
-        else:
-            self.get_logger().warn(f"commit: {resp.message}")
-        return resp
-
-    def stop(self) -> None:
-        """Stop the detector thread (called before the node is destroyed)."""
-        self._stop.set()
-        with self._pending_cv:
-            self._pending_cv.notify_all()
-        if self._worker.is_alive():
-            self._worker.join(timeout=5.0)
+    def commit(self) -> tuple[bool, str]:
+        """``~/commit``: each camera's CameraInfo to its own driver, unless the result is stale."""
+        problem = "" if self.info_msgs is None else self.history.commit_problem()
+        ok, answer = (False, problem) if problem else commit_pair(self.set_info_clients, self.info_msgs)
+        live = self.history.live
+        if ok and live is not None:
+            answer = f"{live.describe()}: {answer}"
+        self.log(f"commit: {answer}", ok)
+        return ok, answer

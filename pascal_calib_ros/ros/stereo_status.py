@@ -59,7 +59,8 @@ def stereo_status_message(node: StereoCalibrationNode) -> DiagnosticArray:
         **{f"coverage_{side}_{k}": round(v, 3) for c, side in enumerate(SIDES) for k, v in cov[c].items()},
         **{f"rejected: {k}": v for k, v in sorted(rejected.items())},
         **{f"rejected {side}: {k}": v for c, side in enumerate(SIDES) for k, v in sorted(cam_rejected[c].items())},
-        "result": node.result_line, "report": node.report_note, "tf_static": node.tf_static.describe(),
+        "result": node.result_line, **node.history.status(), "report": node.report_note,
+        "tf_static": node.tf_static.describe(),
     }
     st.values = [KeyValue(key=k, value=str(v)) for k, v in kv.items()]
     return DiagnosticArray(header=node.header(0), status=[st])

@@ -2,8 +2,11 @@
 the suggested target's outline (cyan; green once the live target matches it), and at the bottom of
 the frame three lines: the match score with one hint (``match 0.62: move the target left``), the
 projection sigma now against the goal, and ``DONE`` (or ``computing the next view...``); after a
-view refused at a suggestion, the refusal with its reason until the next view is stored. Plain
-numpy and OpenCV: no ROS; draws on the picture it is given and returns it.
+view refused at a suggestion, the refusal with its reason until the next view is stored. In the
+panel the guide's progress replaces the coverage verdict ("cover more: X Y", which would send the
+person elsewhere than the suggestion): one bar, the goal over the real sigma (full at the goal),
+below the coverage bars that stay as they are. Plain numpy and OpenCV: no ROS; draws on the
+picture it is given and returns it.
 """
 
 from __future__ import annotations
@@ -13,7 +16,19 @@ import numpy as np
 
 from .guide import MATCH_OVERLAP
 from .guided_live import GuideView
-from .overlay import BAR_FULL_BGR, DETECTED_BGR, TEXT_BGR, WAIT_BGR, _fit, _text, _unit
+from .overlay import (
+    BAR_EMPTY_BGR,
+    BAR_FULL_BGR,
+    DETECTED_BGR,
+    PANEL_BGR,
+    TEXT_BGR,
+    WAIT_BGR,
+    _fit,
+    _text,
+    _unit,
+    bar_colour,
+    state_origin,
+)
 
 OUTLINE_BGR = (255, 255, 0)  # cyan: the suggestion, apart from the green / red detection and magenta footprints
 MATCHED_BGR = DETECTED_BGR
@@ -47,9 +62,40 @@ def draw_guide(picture: np.ndarray, v: GuideView, width: int) -> np.ndarray:
     if len(v.outline) >= 3 and not v.done:
         poly = np.round(np.asarray(v.outline, float)).astype(np.int32).reshape(-1, 1, 2)
         cv2.polylines(vis, [poly], True, MATCHED_BGR if v.matched else OUTLINE_BGR, thick, cv2.LINE_AA)
+    _draw_progress(picture, v, width)
     y = h - round(12 * u)
     for text, colour in reversed(guide_lines(v)):
         _text(vis, _fit(text, width - round(20 * u), 0.55 * u, font_thick), (round(10 * u), y), 0.55 * u, colour,
               font_thick, background=(0, 0, 0))
         y -= round(28 * u)
     return picture
+
+
+def progress(v: GuideView) -> float:
+    """The guide's progress in [0, 1]: the goal over the real worst projection sigma (0 before a
+    calibration, 1 once the goal is reached)."""
+    if v.done:
+        return 1.0
+    if not np.isfinite(v.sigma_px) or v.sigma_px <= 0:
+        return 0.0
+    return float(np.clip(v.goal_sigma_px / v.sigma_px, 0.0, 1.0))
+
+
+def _draw_progress(picture: np.ndarray, v: GuideView, width: int) -> None:
+    """The panel's state lines (below the coverage bars) replaced by the guide's progress bar."""
+    h = picture.shape[0]
+    if picture.shape[1] <= width:
+        return
+    u = _unit(h)
+    font_thick = max(1, round(1.6 * u))
+    x0, y = state_origin(width, h)
+    x1 = picture.shape[1] - (x0 - width)
+    cv2.rectangle(picture, (width, y - round(24 * u)), (picture.shape[1] - 1, y + round(120 * u)), PANEL_BGR, -1)
+    p = progress(v)
+    _text(picture, f"guide {int(100 * p)}%", (x0, y), 0.6 * u, TEXT_BGR, font_thick)
+    top, bottom = y + round(10 * u), y + round(30 * u)
+    cv2.rectangle(picture, (x0, top), (x1 - 1, bottom), BAR_EMPTY_BGR, -1)
+    if p > 0:
+        cv2.rectangle(picture, (x0, top), (x0 + max(1, round(p * (x1 - x0))) - 1, bottom), bar_colour(p), -1)
+    state = ("DONE: ~/calibrate" if v.done else "follow the outline")
+    _text(picture, state, (x0, bottom + round(26 * u)), 0.5 * u, BAR_FULL_BGR if v.done else WAIT_BGR, font_thick)

@@ -173,6 +173,12 @@ def _draw_detection(vis: np.ndarray, det: Detection | None, verdict: str | None,
           font_thick, background=(0, 0, 0))
 
 
+def state_origin(width: int, height: int) -> tuple[int, int]:
+    """(x, y) of the panel's state lines (the view count, then READY or what is missing) below the
+    coverage bars, in the output of :func:`draw_live_overlay` for a ``width`` x ``height`` frame."""
+    return bar_rects(width, height)["x"][0], round((48 + 58 * len(AXES) + 10) * _unit(height))
+
+
 def _draw_panel(out: np.ndarray, w: int, coverage: Mapping[str, float], views: int, min_views: int, ready: bool,
                 u: float) -> None:
     """The panel right of the frame (``w`` its width): coverage bars, view count, state."""
@@ -189,8 +195,7 @@ def _draw_panel(out: np.ndarray, w: int, coverage: Mapping[str, float], views: i
         half = x0 + round(READY_COVERAGE * (x1 - x0))
         cv2.rectangle(out, (half - thick // 2, y0 - max(2, round(4 * u))), (half + (thick - 1) // 2, y0 - 1),
                       TEXT_BGR, -1)
-    x0 = bar_rects(w, h)["x"][0]
-    y = round((48 + 58 * len(AXES) + 10) * u)
+    x0, y = state_origin(w, h)
     _text(out, f"views {views}/{min_views}", (x0, y), 0.6 * u, TEXT_BGR, font_thick)
     y += round(34 * u)
     if ready:

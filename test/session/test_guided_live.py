@@ -13,10 +13,10 @@ import pytest
 from pascal_calib_ros.analysis.candidates import Placement, place
 from pascal_calib_ros.calibrate.options import CalibrationOptions
 from pascal_calib_ros.detect.target_detector import detect_target
-from pascal_calib_ros.session.guide_overlay import OUTLINE_BGR, draw_guide, guide_lines
+from pascal_calib_ros.session.guide_overlay import OUTLINE_BGR, draw_guide, guide_lines, progress
 from pascal_calib_ros.session.guided_live import COMPUTING, NEAR_OVERLAP, REFUSED_FRAMES, GuidedLive
 from pascal_calib_ros.session.live import LiveSession
-from pascal_calib_ros.session.overlay import draw_live_overlay
+from pascal_calib_ros.session.overlay import BAR_EMPTY_BGR, bar_rects, draw_live_overlay, state_origin
 from pascal_calib_ros.sim.render import Pose, SensorModel, render_view
 from pascal_calib_ros.sim.session import SessionSpec
 from pascal_calib_ros.targets import Target
@@ -90,6 +90,15 @@ def test_the_guide_stores_matching_views_and_says_done_from_the_real_sigma(ring_
     changed = np.any(pic != before, axis=2)
     assert changed[H - 40:, :W].any()
     assert np.all(pic[changed] == np.array(OUTLINE_BGR), axis=1).any()
+    # the panel: the coverage bars stay, the guide's progress replaces "cover more" (one notion of progress)
+    x0, y0, x1, _ = bar_rects(W, H)["skew"]
+    assert not changed[:y0 + 10, W:].any()
+    _, sy = state_origin(W, H)
+    assert changed[sy - 20:sy + 60, W:].any()
+    p = progress(guide.view())
+    assert 0.0 < p < 1.0 and p == pytest.approx(guide.view().goal_sigma_px / guide.view().sigma_px)
+    filled = pic[sy + 20, x0:x1]
+    assert abs(np.mean(np.any(filled != np.array(BAR_EMPTY_BGR), axis=1)) - p) < 0.05
     guide.reset()
     assert guide.view().count == 0 and not guide.view().done
 
