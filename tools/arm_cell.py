@@ -16,7 +16,8 @@ RosClient = Any  # node_processes.RosClient
 
 class Cell:
     """An arm resting at pose :attr:`k` of a simulated session: its tool pose at 20 Hz and its
-    camera's frame at 5 Hz, stamped now, from the client node."""
+    camera's frame at 5 Hz, stamped now + :attr:`shift_ns` (a recording replayed with its own stamps:
+    set it back to loop), from the client node."""
 
     def __init__(self, client: RosClient, images: list[np.ndarray], poses: list[Transform]) -> None:
         from geometry_msgs.msg import PoseStamped
@@ -24,7 +25,7 @@ class Cell:
 
         from pascal_calib_ros.io.image_msgs import grey_to_image_fields
 
-        self.client, self.k, self.ticks = client, 0, 0
+        self.client, self.k, self.ticks, self.shift_ns = client, 0, 0, 0
         self.fields = [grey_to_image_fields(im) for im in images]
         self.poses = poses
         self.pub_pose = client.node.create_publisher(PoseStamped, "/tool_pose", 50)
@@ -32,11 +33,26 @@ class Cell:
         client.node.create_timer(0.05, self.tick)
 
     def tick(self) -> None:
-        from geometry_msgs.msg import PoseStamped
         from sensor_msgs.msg import Image
 
         self.ticks += 1
-        stamp = self.client.node.get_clock().now().to_msg()
+        stamp = self.stamp()
+        self.pose(stamp)
+        if self.ticks % 4 == 0:
+            img = Image(**self.fields[self.k])
+            img.header.stamp, img.header.frame_id = stamp, "camera"
+            self.pub_img.publish(img)
+
+    def stamp(self, extra_ns: int = 0) -> Any:
+        from builtin_interfaces.msg import Time
+
+        t = self.client.node.get_clock().now().nanoseconds + self.shift_ns + extra_ns
+        return Time(sec=t // 10**9, nanosec=t % 10**9)
+
+    def pose(self, stamp: Any) -> None:
+        """Publish the tool pose of :attr:`k` with ``stamp``."""
+        from geometry_msgs.msg import PoseStamped
+
         m = PoseStamped()
         m.header.frame_id, m.header.stamp = "base_link", stamp
         T = self.poses[self.k]
@@ -44,10 +60,6 @@ class Cell:
         q = T.quat
         (m.pose.orientation.x, m.pose.orientation.y, m.pose.orientation.z, m.pose.orientation.w) = (float(x) for x in q)
         self.pub_pose.publish(m)
-        if self.ticks % 4 == 0:
-            img = Image(**self.fields[self.k])
-            img.header.stamp, img.header.frame_id = stamp, "camera"
-            self.pub_img.publish(img)
 
     def rest(self, k: int) -> None:
         """Move to pose k and rest there (frames of the new pose keep coming)."""

@@ -5,7 +5,9 @@
    (while views are captured, and while ``~/calibrate`` writes its results) and started again
    with ``resume:=true`` each time: the same views, the same result to the printed digit, and
    after every kill a session file that reads back and a result set that is whole;
-2. every service called ``--calls`` times in random order while frames stream: the process stays
+2. the session's recording replayed ``--loops`` times with its own stamps (time going back at every
+   pass) and one robot pose stamped an hour ahead: every capture after them succeeds;
+3. every service called ``--calls`` times in random order while frames stream: the process stays
    up and every answer says what happened.
 
 Run inside the private network namespace (DDS on loopback only)::
@@ -160,12 +162,41 @@ def service_storm(work: Path, sim: Any, dom: int, calls: int, rng: random.Random
     return answers
 
 
+def looped_replay(work: Path, sim: Any, dom: int, loops: int) -> tuple[int, int, str]:
+    """A recording replayed ``loops`` times with its own stamps (each pass starts again at the first
+    stamp: time going back) and one robot pose stamped an hour ahead in the first pass: how many
+    captures succeeded of how many, and the node's pose-buffer line."""
+    node = NodeProcess("calibration_node", {**PARAMS, "max_views": 100, "record_session": "never"}, dom,
+                       work / "looped.log")
+    client = RosClient(dom)
+    cell = Cell(client, sim.images["ring_a4"], sim.robot_poses)
+    t0 = client.node.get_clock().now().nanoseconds
+    stored = tried = 0
+    try:
+        for loop in range(loops):
+            cell.shift_ns = t0 - client.node.get_clock().now().nanoseconds  # the pass starts at the first stamp
+            for k in range(len(sim.robot_poses)):
+                if loop == 0 and k == 1:
+                    cell.pose(cell.stamp(3600 * 10**9))  # a pose stamped an hour ahead
+                cell.rest(k)
+                r = call(client, node, "capture", 15)
+                tried += 1
+                stored += int(r is not None and r.success)
+        r = call(client, node, "calibrate", 180)
+        note = r.message[:120] if r is not None else "no answer"
+    finally:
+        client.close()
+        node.stop()
+    return stored, tried, note
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--kills", type=int, default=20)
     ap.add_argument("--calls", type=int, default=1000)
     ap.add_argument("--views", type=int, default=20)
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--loops", type=int, default=3, help="passes of the looped recording")
     args = ap.parse_args()
     rng = random.Random(args.seed)
     sim = simulate_arm_session(resolve_target("ring_a4"), ArmSpec(mode="eye_in_hand", views=args.views, width=640,
@@ -178,13 +209,16 @@ def main() -> int:
     same = ref == got
     print(f"uninterrupted: {ref}\nkilled {len(events)} times and resumed: {got}\nsame result to the printed digit: "
           f"{same} ({time.monotonic() - t0:.0f} s)")
+    stored, tried, note = looped_replay(work, sim, 64, args.loops)
+    print(f"a recording looped {args.loops} times (stamps going back) and a pose stamped an hour ahead: {stored} of "
+          f"{tried} captures stored; ~/calibrate: {note}")
     t1 = time.monotonic()
     answers = service_storm(work, sim, 63, args.calls, rng)
     bad = sum(v for (name, _, said), v in answers.items() if not said)
     print(f"{args.calls} service calls in random order ({time.monotonic() - t1:.0f} s): "
           + ", ".join(f"{n} {'ok' if ok else 'refused'} {v}" for (n, ok, _), v in sorted(answers.items()))
           + f"; answers without a message: {bad}")
-    return 0 if same and bad == 0 and answers[("alive", True, True)] == 1 else 1
+    return 0 if same and bad == 0 and stored == tried and answers[("alive", True, True)] == 1 else 1
 
 
 if __name__ == "__main__":

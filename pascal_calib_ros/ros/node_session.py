@@ -40,11 +40,11 @@ def manifest_of(node: CalibrationNode) -> SessionManifest:
 
 
 def recording_on(node: CalibrationNode) -> bool:
-    """``record_session``: ``on``, ``off``, or ``auto`` (on with ``collect:=on_capture`` or ``output_dir``)."""
+    """``record_session``: ``always``, ``never``, or ``auto`` (with ``collect:=on_capture`` or ``output_dir``)."""
     mode = str(node.p("record_session"))
     if mode == "auto":
         return str(node.p("collect")) == "on_capture" or bool(node.p("output_dir")) or bool(node.p("resume"))
-    return mode == "on"
+    return mode == "always"
 
 
 def newest_session(sessions: Path) -> Path | None:

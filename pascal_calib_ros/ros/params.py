@@ -65,8 +65,8 @@ PARAMS = (
           modes=MONO),
     Param('record_session', 'auto',
           'write every stored view as it is taken (the frame, its stamp and robot pose, and a manifest; see '
-          'Sessions) into `session_dir`: `auto` with `collect:=on_capture` or `output_dir`, `on`, `off`',
-          choices=('auto', 'on', 'off'), modes=MONO),
+          'Sessions) into `session_dir`: `auto` with `collect:=on_capture` or `output_dir`, `always`, `never`',
+          choices=('auto', 'always', 'never'), modes=MONO),
     Param('session_dir', '',
           'the session folder; default `<output_dir or ~/.ros/pascal_calib/<camera_name>>/sessions/<time>`, named '
           'in `~/status` (`session_folder`); `~` is expanded', modes=MONO),

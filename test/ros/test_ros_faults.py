@@ -154,7 +154,7 @@ def test_guards_turn_an_exception_into_an_answer(tmp_path: Path) -> None:
     rclpy.init(context=ctx, domain_id=next_domain_id())
     node = CalibrationNode(context=ctx, parameter_overrides=[Parameter("output_dir", value="~/calib_x"),
                                                              Parameter("calibration_file", value="~/c.yaml"),
-                                                             Parameter("record_session", value="off")])
+                                                             Parameter("record_session", value="never")])
     try:
         r = guarded_service(node, "~/verify", boom)(Trigger.Request(), Trigger.Response())
         assert not r.success and r.message == "~/verify failed: TypeError: int() argument must be a string, not " \
