@@ -76,17 +76,6 @@ def fit_conic_algebraic(pts: np.ndarray) -> np.ndarray:
     return normalize_conic(T.T @ Cn @ T)
 
 
-def group_sums(values: np.ndarray, owner: np.ndarray, n_groups: int) -> np.ndarray:
-    """Sums of the rows of ``values`` per group (``owner`` sorted; empty groups sum to zero)."""
-    counts = np.bincount(owner, minlength=n_groups)
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    out = np.zeros((n_groups, *values.shape[1:]))
-    filled = counts > 0
-    if filled.any():
-        out[filled] = np.add.reduceat(values, starts[filled], axis=0)
-    return out
-
-
 def group_medians(values: np.ndarray, owner: np.ndarray, n_groups: int) -> np.ndarray:
     """Median of ``values`` within each group (owner: group of each value; empty groups: nan)."""
     lo_v, hi_v = (float(values.min()), float(values.max())) if len(values) else (0.0, 1.0)

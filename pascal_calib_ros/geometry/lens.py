@@ -129,14 +129,6 @@ class PolynomialModel(LensModel):
         return (radial + 2 * x * x * dradial + 2 * p1 * y + 6 * p2 * x, b, b,
                 radial + 2 * y * y * dradial + 6 * p1 * y + 2 * p2 * x)
 
-    def _normalized_jacobians(self, xy: np.ndarray, D: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """d x_d / d (x, y) (..., 2, 2) and d x_d / d D (..., 2, n)."""
-        terms = self._radial(xy, D)
-        a, b, c, d = self._jacobian_xy(xy, D, terms)
-        J = np.empty((*xy.shape[:-1], 2, 2))
-        J[..., 0, 0], J[..., 0, 1], J[..., 1, 0], J[..., 1, 1] = a, b, c, d
-        return J, self._coefficient_jacobian(xy, terms)
-
     def _coefficient_jacobian(self, xy: np.ndarray, terms: tuple[np.ndarray, ...]) -> np.ndarray:
         """d x_d / d D (..., 2, n) from :meth:`_radial`'s terms of the same points."""
         x, y = xy[..., 0], xy[..., 1]

@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 from geometry_msgs.msg import TransformStamped
-from sensor_msgs.msg import CameraInfo, CompressedImage, Image
+from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Header
 
 from ..geometry.transform import Transform
@@ -40,7 +40,3 @@ def image_msg(img: np.ndarray, header: Any) -> Image:
     return Image(header=header, **grey_to_image_fields(img))
 
 
-def compressed_msg(data: bytes, fmt: str, header: Any) -> CompressedImage:
-    msg = CompressedImage(header=header, format=fmt)
-    msg.data = data
-    return msg

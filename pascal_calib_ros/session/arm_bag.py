@@ -41,7 +41,7 @@ STILL_RAD = 1e-6  # ... and this (rotation) over the samples around a frame
 DEFAULT_TOOL_FRAME = "tool0"  # PoseStamped has no child frame
 DEFAULT_BASE_FRAME = "base_link"  # a pose message without header.frame_id
 SAME_REST = "same rest of the arm as a used frame"
-MOVING = "robot moving"
+ROBOT_MOVING = "robot moving"
 
 
 @dataclass
@@ -252,7 +252,7 @@ def _examine(frame: BagFrame, buffer: PoseBuffer, sample_stamps: list[int], max_
     moved = buffer.motion_between(lo, hi, max_age_s)
     if moved is None or moved[0] > 1000 * STILL_M or moved[1] > np.degrees(STILL_RAD):
         mm, deg = moved if moved is not None else (float("nan"), float("nan"))
-        frame.reason = f"{MOVING} (pose changes by {mm:.3f} mm, {deg:.4f} deg between the samples around it)"
+        frame.reason = f"{ROBOT_MOVING} (pose changes by {mm:.3f} mm, {deg:.4f} deg between the samples around it)"
     return frame
 
 

@@ -42,10 +42,6 @@ class Pose:
     def to_dict(self) -> dict[str, list[float]]:
         return {"rvec": self.rvec.tolist(), "t": np.asarray(self.t, float).tolist()}
 
-    @staticmethod
-    def from_dict(d: dict[str, list[float]]) -> Pose:
-        return Pose(rodrigues(np.array(d["rvec"])), np.array(d["t"], float))
-
 
 @dataclass(frozen=True)
 class SheetShape:

@@ -20,7 +20,7 @@ from pascal_calib_ros.cli.common import EXIT_CALIB, EXIT_INPUT
 from pascal_calib_ros.geometry.transform import Transform
 from pascal_calib_ros.io.bags import write_arm_bag, write_image_bag
 from pascal_calib_ros.io.hand_eye_yaml import read_hand_eye_yaml, write_poses_yaml
-from pascal_calib_ros.session.arm_bag import MOVING, SAME_REST, read_arm_bag
+from pascal_calib_ros.session.arm_bag import ROBOT_MOVING, SAME_REST, read_arm_bag
 from pascal_calib_ros.sim.arm import ArmSession, ArmSpec, hand_eye_errors, simulate_arm_session
 from pascal_calib_ros.targets import Target
 
@@ -153,7 +153,8 @@ def test_still_frames_one_per_rest_moving_and_unposed_skipped(tmp_path: Path) ->
                      + [("/image", t, _image(k)) for k, t in enumerate(frames)])
     arm = read_arm_bag(bag)
     why = [f.reason.split(" (")[0] for f in arm.frames]
-    assert why == [SAME_REST, "", MOVING, MOVING, MOVING, SAME_REST, "", SAME_REST, "no robot pose"], why
+    assert why == [SAME_REST, "", ROBOT_MOVING, ROBOT_MOVING, ROBOT_MOVING, SAME_REST, "", SAME_REST,
+                   "no robot pose"], why
     used = arm.used
     assert used[0].pose is not None and used[1].pose is not None
     np.testing.assert_allclose(used[0].pose.matrix, A.matrix, atol=1e-12)
