@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from functools import cache
+from pathlib import Path
 
 import numpy as np
 
@@ -72,3 +73,16 @@ def three_camera_spec() -> RigSpec:
 @cache
 def rendered_three() -> RigSession:
     return render_rig(resolve_target(GRID), three_camera_spec())
+
+
+def write_rig_file(folder: Path, sigma_deg: float = 0.01) -> Path:
+    """A ``rig.yaml`` of three cameras (cam1, cam2 0.1 m and 0.2 m right of cam0, turned 0.05 rad per
+    step), each with a rotation sigma of ``sigma_deg``."""
+    from pascal_calib_ros.geometry.transform import Transform
+    from pascal_calib_ros.io.stereo_yaml import RigCameraData, write_rig_yaml
+
+    cams = [RigCameraData("cam0", "cam0_optical_frame", "cam0.yaml", Transform(), np.zeros(3), np.zeros(3))]
+    cams += [RigCameraData(f"cam{k}", f"cam{k}_optical_frame", f"cam{k}.yaml",
+                           Transform.from_rotvec([0.0, 0.05 * k, 0.0], [0.1 * k, 0.0, 0.0]),
+                           np.full(3, sigma_deg), np.full(3, 0.05)) for k in (1, 2)]
+    return write_rig_yaml(folder / "rig.yaml", cams, 20)

@@ -1,7 +1,7 @@
 """The ``publisher`` node (node name ``pascal_calib_publisher``): a saved result on ``/tf_static``.
 
 ``ros2 run pascal_calib_ros publisher --ros-args -p file:=$HOME/calib/wrist/hand_eye.yaml`` (or
-``publish.launch.py``) reads a ``hand_eye.yaml`` or ``stereo.yaml`` at start and broadcasts its transform
+``publish.launch.py``) reads a ``hand_eye.yaml``, ``stereo.yaml`` or ``rig.yaml`` at start and broadcasts its transforms
 on ``/tf_static`` (:mod:`.tf_static`: transient local, so tf2 listeners started later get it), as the
 calibration node did when it made the result, so a cell's frames come back at every start. It checks
 the file every ``watch_period`` seconds and broadcasts again when it changes: a recalibration takes
@@ -23,15 +23,16 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from ..errors import PascalCalibError
-from ..workflows.static_transform import ResultFileError, StaticTransform, read_result_transform
+from ..workflows.static_transform import ResultFileError, StaticTransform, read_result_transforms
 from .conversions import transform_msg
 from .guard import guarded_callback
 from .tf_static import TF_STATIC, StaticTransforms
 
 PARAMS: tuple[tuple[str, Any, str], ...] = (
-    ("file", "", "the result to broadcast: a `hand_eye.yaml` (its `parent_frame` → `child_frame`) or a "
-                 "`stereo.yaml` (`right_in_left`: left → right optical frame), as the calibration node and "
-                 "`pascal-calib handeye` / `stereo` write them; `~` is expanded (read only)"),
+    ("file", "", "the result to broadcast: a `hand_eye.yaml` (its `parent_frame` → `child_frame`), a "
+                 "`stereo.yaml` (`right_in_left`: left → right optical frame) or a `rig.yaml` (the reference "
+                 "camera's optical frame → each other camera's), as the calibration node and "
+                 "`pascal-calib handeye` / `stereo` / `rig` write them; `~` is expanded (read only)"),
     ("watch_period", 1.0, "seconds between checks of the file; a changed file is read again and, if it can be "
                           "stood behind, broadcast (0: read once) (range 0 to 3600; read only)"),
 )
@@ -51,7 +52,7 @@ class PublisherNode(Node):
         self.tf_static = StaticTransforms(self)
         if self.tf_static.unavailable:
             raise PascalCalibError(self.tf_static.unavailable)
-        self.current: StaticTransform | None = None
+        self.current: list[StaticTransform] = []
         self.digest = ""
         self.broadcasts = 0
         self.refusal = ""
@@ -60,25 +61,29 @@ class PublisherNode(Node):
         if period > 0:
             self.create_timer(period, guarded_callback(self, "file check", self._check))
 
-    def _read(self) -> tuple[str, StaticTransform]:
-        """The file's checksum and transform (:class:`ResultFileError` when it cannot be broadcast)."""
+    def _read(self) -> tuple[str, list[StaticTransform]]:
+        """The file's checksum and transforms (:class:`ResultFileError` when they cannot be broadcast)."""
         try:
             data = self.path.read_bytes()
         except OSError as e:
             raise ResultFileError(f"{self.path}: cannot read ({e})") from None
-        return hashlib.sha256(data).hexdigest(), read_result_transform(self.path)
+        return hashlib.sha256(data).hexdigest(), read_result_transforms(self.path)
 
     def _load(self, at_start: bool = False) -> None:
-        digest, st = self._read()
-        if self.current is not None and (st.parent, st.child) != (self.current.parent, self.current.child):
-            raise ResultFileError(f"{self.path}: its frames changed from {self.current.parent} -> "
-                                  f"{self.current.child} to {st.parent} -> {st.child}; a static transform cannot be "
+        digest, sts = self._read()
+        frames = [(st.parent, st.child) for st in sts]
+        if self.current and frames != [(st.parent, st.child) for st in self.current]:
+            raise ResultFileError(f"{self.path}: its frames changed from "
+                                  f"{', '.join(f'{st.parent} -> {st.child}' for st in self.current)} to "
+                                  f"{', '.join(f'{a} -> {b}' for a, b in frames)}; a static transform cannot be "
                                   "withdrawn from /tf_static: restart the publisher to broadcast the new frames")
-        self.tf_static.send(transform_msg(st.pose, st.parent, st.child, self.get_clock().now().to_msg()))
-        self.current, self.digest, self.refusal = st, digest, ""
+        now = self.get_clock().now().to_msg()
+        self.tf_static.send(*(transform_msg(st.pose, st.parent, st.child, now) for st in sts))
+        self.current, self.digest, self.refusal = sts, digest, ""
         self.broadcasts += 1
         again = "" if at_start else "the file changed: "
-        self.get_logger().info(f"{again}broadcasting {st.describe()} on {TF_STATIC} (from {self.path})")
+        for st in sts:
+            self.get_logger().info(f"{again}broadcasting {st.describe()} on {TF_STATIC} (from {self.path})")
 
     def _check(self) -> None:
         """Timer: read the file again when its bytes changed; a refusal keeps the previous transform."""

@@ -8,6 +8,9 @@ refused with the reason when the file does not hold one the calibration node wou
 - ``stereo.yaml`` (:mod:`..io.stereo_yaml`): ``left_frame`` -> ``right_frame``, the right optical frame's
   pose in the left's, as the stereo node's ``~/stereo_transform``; refused as the stereo node refuses
   (:func:`.stereo_session.stereo_doubts`): sigma above 0.5 deg / 5 mm, epipolar RMS above 1 px.
+- ``rig.yaml`` (:mod:`..io.stereo_yaml`, ``pascal-calib rig``): the reference camera's optical frame ->
+  each other camera's, one transform per camera; refused when any camera's pose is not finite or its
+  sigma is above 0.5 deg / 5 mm (a rig is broadcast whole or not at all).
 """
 
 from __future__ import annotations
@@ -20,9 +23,9 @@ import numpy as np
 import yaml
 
 from ..errors import PascalCalibError
-from ..geometry.transform import Transform
+from ..geometry.transform import Transform, TransformError
 from ..io.hand_eye_yaml import PosesYamlError, read_hand_eye_yaml
-from ..io.stereo_yaml import StereoYamlError, read_stereo_yaml
+from ..io.stereo_yaml import StereoYamlError, read_rig_yaml, read_stereo_yaml
 from .hand_eye import MAX_HAND_EYE_STD_DEG, MAX_HAND_EYE_STD_MM
 from .stereo_session import MAX_EPIPOLAR_RMS_PX, MAX_SIGMA_DEG, MAX_SIGMA_MM
 
@@ -107,6 +110,42 @@ def _stereo(path: Path) -> StaticTransform:
     return StaticTransform(_frame(doc, "left_frame", path), _frame(doc, "right_frame", path), rig.inverse(), "stereo")
 
 
+def _rig(path: Path) -> list[StaticTransform]:
+    try:
+        cams = read_rig_yaml(path)
+    except (StereoYamlError, TransformError) as e:
+        raise ResultFileError(str(e)) from None
+    if len(cams) < 2:
+        raise ResultFileError(f"{path}: a rig of {len(cams)} camera(s): nothing to broadcast")
+    out = []
+    for c in cams[1:]:
+        if not np.all(np.isfinite(c.pose.matrix)):
+            raise ResultFileError(f"{path}: camera {c.name}'s pose is not finite")
+        sr, st = np.asarray(c.sigma_rotation_deg, float), np.asarray(c.sigma_translation_mm, float)
+        if sr.shape != (3,) or st.shape != (3,) or not (np.all(np.isfinite(sr)) and np.all(np.isfinite(st))):
+            raise ResultFileError(f"{path}: camera {c.name}'s sigmas are missing or not finite")
+        if np.any(sr > MAX_SIGMA_DEG) or np.any(st > MAX_SIGMA_MM):
+            raise ResultFileError(f"{path}: camera {c.name}'s pose is not determined well enough: sigma "
+                                  f"{np.round(sr, 4).tolist()} deg, {np.round(st, 3).tolist()} mm (limits "
+                                  f"{MAX_SIGMA_DEG:g} deg, {MAX_SIGMA_MM:g} mm)")
+        out.append(StaticTransform(cams[0].frame, c.frame, c.pose, "rig"))
+    return out
+
+
+def read_result_transforms(path: str | Path) -> list[StaticTransform]:
+    """The static transforms of a saved ``hand_eye.yaml``, ``stereo.yaml`` (one) or ``rig.yaml`` (one per
+    camera but the reference; the kind read from its keys), or :class:`ResultFileError` with the reason
+    they cannot be broadcast."""
+    p = Path(path).expanduser()
+    try:
+        doc = yaml.safe_load(p.read_text())
+    except (OSError, yaml.YAMLError) as e:
+        raise ResultFileError(f"{p}: cannot read ({e})") from None
+    if isinstance(doc, dict) and "cameras" in doc and "reference_frame" in doc:
+        return _rig(p)
+    return [read_result_transform(p)]
+
+
 def read_result_transform(path: str | Path) -> StaticTransform:
     """The static transform of a saved ``hand_eye.yaml`` or ``stereo.yaml`` (the kind read from its keys),
     or :class:`ResultFileError` with the reason it cannot be broadcast."""
@@ -119,5 +158,6 @@ def read_result_transform(path: str | Path) -> StaticTransform:
         return _stereo(p)
     if isinstance(doc, dict) and "parent_frame" in doc and "translation" in doc:
         return _hand_eye(p)
-    raise ResultFileError(f"{p}: neither a hand-eye result (hand_eye.yaml: parent_frame, translation, rotation, ...) "
-                          "nor a stereo result (stereo.yaml: R, T, right_in_left, ...)")
+    raise ResultFileError(f"{p}: neither a hand-eye result (hand_eye.yaml: parent_frame, translation, rotation, ...), "
+                          "a stereo result (stereo.yaml: R, T, right_in_left, ...) nor a rig (rig.yaml: "
+                          "reference_frame, cameras)")

@@ -89,3 +89,22 @@ def test_a_file_it_cannot_stand_behind_stops_it_at_start(tmp_path: Path, write: 
         assert why in pub.log() and str(path) in pub.log(), pub.log()
     finally:
         pub.stop()
+
+
+def test_a_rig_is_broadcast_whole(tmp_path: Path) -> None:
+    """A rig.yaml (``pascal-calib rig``): every camera's transform from the reference camera, received
+    by a late listener in another process."""
+    from rig_sessions import write_rig_file
+
+    path = write_rig_file(tmp_path)
+    dom = next_domain_id()
+    pub = NodeProcess("publisher", {"file": str(path)}, dom, tmp_path / "pub.log")
+    try:
+        got = tf_static_echo(dom, ["cam1_optical_frame", "cam2_optical_frame"])
+        assert got["rc"] == 0, got["output"] + pub.log()
+        for k in (1, 2):
+            sent = got["by_child"][f"cam{k}_optical_frame"]
+            assert sent["parent"] == "cam0_optical_frame"
+            np.testing.assert_allclose(sent["translation"], [0.1 * k, 0.0, 0.0], rtol=0, atol=1e-9)
+    finally:
+        assert pub.stop() == 0, pub.log()

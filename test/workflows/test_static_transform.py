@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from rig_sessions import write_rig_file
 
 from pascal_calib_ros.geometry.camera import Camera
 from pascal_calib_ros.geometry.rectify import rectify_pair
@@ -89,3 +90,15 @@ def test_stereo_file_the_node_would_not_publish_is_refused(tmp_path: Path) -> No
         read_result_transform(_stereo(tmp_path, epipolar_rms=1.5)[0])
     with pytest.raises(ResultFileError, match="not determined well enough"):
         read_result_transform(_stereo(tmp_path, sigma_mm=6.0)[0])
+
+
+def test_a_rig_gives_one_transform_per_camera_or_none(tmp_path: Path) -> None:
+    from pascal_calib_ros.workflows.static_transform import read_result_transforms
+
+    sts = read_result_transforms(write_rig_file(tmp_path))
+    assert [(st.parent, st.child, st.kind) for st in sts] == [("cam0_optical_frame", "cam1_optical_frame", "rig"),
+                                                             ("cam0_optical_frame", "cam2_optical_frame", "rig")]
+    np.testing.assert_allclose(sts[1].pose.translation, [0.2, 0.0, 0.0], atol=1e-12)
+    with pytest.raises(ResultFileError, match="camera cam1's pose is not determined well enough"):
+        read_result_transforms(write_rig_file(tmp_path, sigma_deg=0.9))
+    assert len(read_result_transforms(write_hand_eye_yaml(tmp_path / "he.yaml", hand_eye_record()))) == 1
