@@ -280,7 +280,7 @@ def _clean_ratios(img: np.ndarray, target: Target, exact: np.ndarray | None = No
     """Asymmetry of the corners of a clean view over the board's lower quartile (the check's
     statistic; it rejects above ``MAX_ASYMMETRY``) after the first refinement; with the ``exact``
     corners, only of those refined to within 0.1 px of them (the others are searched again)."""
-    from pascal_calib_ros.detect.checkerboard import _right_handed, coarse_corners, corner_radii
+    from pascal_calib_ros.detect.checkerboard import coarse_corners, corner_radii, right_handed
     from pascal_calib_ros.detect.saddle import refine_saddles
 
     assert target.checkerboard is not None
@@ -288,7 +288,7 @@ def _clean_ratios(img: np.ndarray, target: Target, exact: np.ndarray | None = No
     c = coarse_corners(img, (nx, ny))
     if c is None:
         return None
-    grid = _right_handed(c.reshape(ny, nx, 2))
+    grid = right_handed(c.reshape(ny, nx, 2))
     fit = refine_saddles(img, grid.reshape(-1, 2), corner_radii(grid).ravel())
     ratio = fit.rms / np.percentile(fit.rms, 25)
     if exact is None:

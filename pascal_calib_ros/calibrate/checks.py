@@ -20,7 +20,7 @@ from .refine import RefineResult
 from .result import CalibrationError
 
 
-def _shape_warnings(shape: dict[str, float], std: dict[str, float], effect: dict[str, float],
+def shape_warnings(shape: dict[str, float], std: dict[str, float], effect: dict[str, float],
                     res: RefineResult) -> list[str]:
     """Say when the estimated shape matters: significant (> 3 sigma) and moving an intrinsic by
     more than its own standard deviation."""
@@ -52,7 +52,7 @@ PINHOLE_MAX_FIELD_DEG = 85.0  # rays this far from the axis are beyond what an x
 PINHOLE_CHECK_RATIO = 0.7  # the field is estimated only when the edges reach r > 0.7 fx of the fit
 
 
-def _refuse_beyond_pinhole_field(usable: list[Detection], target: Target, lens: LensModel, w: int, h: int,
+def refuse_beyond_pinhole_field(usable: list[Detection], target: Target, lens: LensModel, w: int, h: int,
                                  fx: float) -> None:
     """A pinhole model (x = X/Z) cannot describe rays near or beyond 90 degrees, but fitted to a
     fisheye it may still reach a small RMS in one of several minima (which one was seen to change
@@ -60,7 +60,7 @@ def _refuse_beyond_pinhole_field(usable: list[Detection], target: Target, lens: 
     every usable view covers is estimated independently of the fit, with the generic fisheye lens
     r = f theta of :func:`equidistant_focal`; a field wider than PINHOLE_MAX_FIELD_DEG is refused."""
     if not any(d.edges for d in usable):
-        return  # corners only: the fold check (_check_model_fits) covers them
+        return  # corners only: the fold check (check_model_fits) covers them
     pts = np.concatenate([e.points for d in usable for e in d.edges])
     r = np.hypot(pts[:, 0] - w / 2, pts[:, 1] - h / 2)
     r_far = float(np.percentile(r, 99.9))
@@ -82,7 +82,7 @@ def _refuse_beyond_pinhole_field(usable: list[Detection], target: Target, lens: 
 FOLD_REFUSE_FRACTION = 0.0005
 
 
-def _check_model_fits(res: RefineResult, lens: LensModel, w: int, h: int) -> float:
+def check_model_fits(res: RefineResult, lens: LensModel, w: int, h: int) -> float:
     """A pinhole polynomial fitted to a lens wider than it can describe folds over: some observed
     edge points then have no ray (or not the one they came from). Refuse such a result and name
     the model to use, rather than publish a folded-over camera."""
@@ -101,7 +101,7 @@ def _check_model_fits(res: RefineResult, lens: LensModel, w: int, h: int) -> flo
     return bad
 
 
-def _check_result(res: RefineResult, w: int, h: int, warnings: list[str]) -> None:
+def check_result(res: RefineResult, w: int, h: int, warnings: list[str]) -> None:
     K = res.K
     if not (0 < K[0, 2] < w and 0 < K[1, 2] < h):
         raise CalibrationError(f"principal point ({K[0, 2]:.0f}, {K[1, 2]:.0f}) outside the image: the "

@@ -42,7 +42,7 @@ class CalibrationOptions:
 LOSS_SCALES = {"soft_l1": 0.3, "linear": float("inf")}  # px; inf: least squares
 
 
-def _checked_options(options: CalibrationOptions, target: Target) -> CalibrationOptions:
+def checked_options(options: CalibrationOptions, target: Target) -> CalibrationOptions:
     """The options with the target's default method filled in; a CalibrationError for any that
     cannot work with this target."""
     opt = replace(options, method=options.method or target.default_method())
@@ -69,7 +69,7 @@ def _checked_options(options: CalibrationOptions, target: Target) -> Calibration
     return opt
 
 
-def _checked_views(dets: list[Detection], opt: CalibrationOptions) -> tuple[list[ViewReport], list[int]]:
+def checked_views(dets: list[Detection], opt: CalibrationOptions) -> tuple[list[ViewReport], list[int]]:
     """A report per view and the indices of the usable ones; a CalibrationError if too few."""
     if not dets:
         raise CalibrationError("no views given")

@@ -17,17 +17,17 @@ from ..geometry.circular import CircularPointError
 from ..geometry.iac import DegenerateViewsError
 from ..geometry.lens import DISTORTION_CHOICES
 from ..targets import Target
-from .checks import MISFIT_RMS, _check_model_fits, _check_result, _refuse_beyond_pinhole_field, _shape_warnings
+from .checks import MISFIT_RMS, check_model_fits, check_result, refuse_beyond_pinhole_field, shape_warnings
 from .initial import (
     pose_to_params,
     pose_with_camera,
 )
 from .observations import ViewData, observations
-from .options import LOSS_SCALES, CalibrationOptions, _checked_options, _checked_views
+from .options import LOSS_SCALES, CalibrationOptions, checked_options, checked_views
 from .problem import intrinsic_names, shape_frame_of
 from .refine import RefineResult, refine
 from .result import CalibrationError, CalibrationResult, ViewReport
-from .start import _start_distortion, _start_poses, closed_form_start, zhang_start
+from .start import closed_form_start, start_distortion, start_poses, zhang_start
 from .zhang import calibrate_zhang
 
 DEFAULT_OPTIONS = CalibrationOptions()
@@ -56,8 +56,8 @@ class Prepared:
 
 def prepare(dets: list[Detection], target: Target, options: CalibrationOptions) -> Prepared:
     """The options checked against the target and the views checked (a CalibrationError if they cannot work)."""
-    opt = _checked_options(options, target)
-    reports, usable = _checked_views(dets, opt)
+    opt = checked_options(options, target)
+    reports, usable = checked_views(dets, opt)
     return Prepared(opt, reports, usable)
 
 
@@ -83,11 +83,11 @@ def first_refinement(dets: list[Detection], target: Target, prep: Prepared) -> R
                                  warnings=start.warnings, K_initial=start.sol.K, refined=False, distortion_model="none",
                                  std_model="none: the closed form has no covariance")
     dof = pose_dof(target)
-    views, poses0, idx = _start_poses(dets, start, target, opt, reports, target.local_origin, dof)
+    views, poses0, idx = start_poses(dets, start, target, opt, reports, target.local_origin, dof)
     if len(idx) < opt.min_views:
         raise CalibrationError(f"only {len(idx)} view(s) gave a pose; need {opt.min_views}")
-    D0 = _start_distortion(dets, start, opt, lens.n, w, h)
-    res = _refine(views, start.sol.K, D0, poses0, dof, opt)
+    D0 = start_distortion(dets, start, opt, lens.n, w, h)
+    res = refine_prepared(views, start.sol.K, D0, poses0, dof, opt)
     return Refined(res, idx, start.sol.K, start.sol.degeneracy_ratio, list(start.warnings))
 
 
@@ -124,14 +124,14 @@ def finish(dets: list[Detection], target: Target, prep: Prepared, first: Refined
     shape_effect: dict[str, float] = {}
     if opt.target_shape:
         res, shape_effect = _estimate_target_shape(res, target, opt, origin, dof)
-        warnings += _shape_warnings(res.shape, res.shape_std, shape_effect, res)
+        warnings += shape_warnings(res.shape, res.shape_std, shape_effect, res)
     if not np.all(np.isfinite(res.K)) or res.K[0, 0] <= 0 or res.K[1, 1] <= 0:
         raise CalibrationError("refinement diverged; check the target file matches the printed target")
     _report_views(res, idx, dets, reports)
-    _check_result(res, w, h, warnings)
+    check_result(res, w, h, warnings)
     if not lens.wide:
-        _refuse_beyond_pinhole_field([dets[k] for k in usable], target, lens, w, h, res.K[0, 0])
-    folded = _check_model_fits(res, lens, w, h)
+        refuse_beyond_pinhole_field([dets[k] for k in usable], target, lens, w, h, res.K[0, 0])
+    folded = check_model_fits(res, lens, w, h)
     if not lens.wide and res.rms > MISFIT_RMS:
         _refuse_if_fisheye_fits(dets, target, opt, res.rms)
     if folded > 0:
@@ -160,7 +160,7 @@ def std_model(res: RefineResult) -> str:
             f"correlated residuals ({', '.join(kinds)}), outliers removed")
 
 
-def _refine(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[np.ndarray], dof: int,
+def refine_prepared(views: list[ViewData], K0: np.ndarray, D0: np.ndarray, poses0: list[np.ndarray], dof: int,
             opt: CalibrationOptions, **more: Any) -> RefineResult:
     """:func:`refine` with the options' distortion, skew, offsets, loss and outlier rejection (``more``:
     its further keywords)."""
@@ -196,7 +196,7 @@ def _drop_outlier_views(res: RefineResult, idx: list[int], reports: list[ViewRep
         reports[idx[i]].reason = (f"outlier: {what} {res.view_rms[i]:.3f} px is "
                                   f"{res.view_rms[i] / max(med, 1e-9):.1f}x the median {med:.3f} px")
     keep = [i for i in range(len(idx)) if i not in bad]
-    res = _refine([res.views[i] for i in keep], res.K, res.D, [res.poses[i] for i in keep], dof, opt)
+    res = refine_prepared([res.views[i] for i in keep], res.K, res.D, [res.poses[i] for i in keep], dof, opt)
     return res, [idx[i] for i in keep]
 
 
@@ -227,7 +227,7 @@ def _add_views_without_start(res: RefineResult, idx: list[int], dets: list[Detec
     order = np.argsort(idx + new_idx, kind="stable")
     views, poses = res.views + new_views, [*res.poses, *new_poses]
     idx = [(idx + new_idx)[i] for i in order]
-    res = _refine([views[i] for i in order], res.K, res.D, [poses[i] for i in order], dof, opt)
+    res = refine_prepared([views[i] for i in order], res.K, res.D, [poses[i] for i in order], dof, opt)
     return _drop_outlier_views(res, idx, reports, opt, dof)
 
 
@@ -235,7 +235,7 @@ def _estimate_target_shape(res: RefineResult, target: Target, opt: CalibrationOp
                            origin: tuple[float, float], dof: int) -> tuple[RefineResult, dict[str, float]]:
     """Refit with the sheet's shape free; the effect on the intrinsics against the flat fit."""
     flat = res
-    res = _refine(flat.views, flat.K, flat.D, flat.poses, dof, opt, shape=opt.target_shape,
+    res = refine_prepared(flat.views, flat.K, flat.D, flat.poses, dof, opt, shape=opt.target_shape,
                   shape_frame=target_shape_frame(target, origin))
     effect = {"fx": res.K[0, 0] - flat.K[0, 0], "fy": res.K[1, 1] - flat.K[1, 1],
               "cx": res.K[0, 2] - flat.K[0, 2], "cy": res.K[1, 2] - flat.K[1, 2], "rms_flat": flat.rms}

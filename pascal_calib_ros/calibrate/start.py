@@ -108,7 +108,7 @@ def closed_form_start(dets: list[Detection], usable: list[int], target: Target, 
                            [sol.warning] if sol.warning else [])
 
 
-def _start_poses(dets: list[Detection], start: ClosedFormStart, target: Target, opt: CalibrationOptions,
+def start_poses(dets: list[Detection], start: ClosedFormStart, target: Target, opt: CalibrationOptions,
                  reports: list[ViewReport], origin: tuple[float, float], dof: int
                  ) -> tuple[list[ViewData], list[np.ndarray], list[int]]:
     """Observations and start pose of every view the closed form used."""
@@ -131,7 +131,7 @@ def _start_poses(dets: list[Detection], start: ClosedFormStart, target: Target, 
     return views, poses0, idx
 
 
-def _start_distortion(dets: list[Detection], start: ClosedFormStart, opt: CalibrationOptions, n: int, w: int,
+def start_distortion(dets: list[Detection], start: ClosedFormStart, opt: CalibrationOptions, n: int, w: int,
                       h: int) -> np.ndarray:
     """The start's own D, zero, or k1 (k2) of the plumb-line division model when grids were straightened."""
     D0 = np.zeros(n)

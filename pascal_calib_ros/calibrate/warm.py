@@ -26,7 +26,7 @@ from .initial import pose_to_params, pose_with_camera
 from .lm import WARM_START, levenberg_marquardt
 from .observations import ViewData, observations
 from .options import LOSS_SCALES, CalibrationOptions
-from .pipeline import Prepared, Refined, _refine, finish, first_refinement, pose_dof, prepare
+from .pipeline import Prepared, Refined, finish, first_refinement, pose_dof, prepare, refine_prepared
 from .problem import Problem
 from .refine import RefineResult
 from .result import CalibrationResult
@@ -96,7 +96,7 @@ def _warm_first(dets: list[Detection], target: Target, prep: Prepared, start: In
         views.append(view)
         blocks.append(block)
     x0 = np.concatenate([res.first_x, *blocks])
-    refined = _refine(views, res.K, res.D, [], dof, prep.opt, x0=x0, lm=WARM_START)
+    refined = refine_prepared(views, res.K, res.D, [], dof, prep.opt, x0=x0, lm=WARM_START)
     return Refined(refined, [*prev.idx, *new], prev.K_initial, prev.degeneracy_ratio, list(prev.start_warnings))
 
 

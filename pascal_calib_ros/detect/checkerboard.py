@@ -66,7 +66,7 @@ def find_checkerboard(gray8: np.ndarray, target: Target, det: Detection | None =
     coarse = coarse_corners(gray8, (nx, ny))
     if coarse is None:
         return None
-    grid, ok = saddle_grid(gray8, _right_handed(coarse.reshape(ny, nx, 2)))
+    grid, ok = saddle_grid(gray8, right_handed(coarse.reshape(ny, nx, 2)))
     n, bad = ok.size, int(ok.size - ok.sum())
     if 2 * bad > n:
         _tell(det, f"checkerboard not used: {bad} of {n} corners are not on a saddle (occluded, "
@@ -126,7 +126,7 @@ def _to_full(c: np.ndarray, scale: int) -> np.ndarray:
     return np.asarray(c, float).reshape(-1, 2) * scale
 
 
-def _right_handed(grid: np.ndarray) -> np.ndarray:
+def right_handed(grid: np.ndarray) -> np.ndarray:
     """The (ny, nx, 2) grid with its rows reversed if its order is mirrored against the sheet's
     (x to the right, y down, seen from the printed side: positive cross products in pixels)."""
     u = grid[:-1, 1:] - grid[:-1, :-1]

@@ -53,7 +53,7 @@ class BagPose:
     rotation: tuple[float, float, float, float]  # x, y, z, w
 
 
-def _typestore() -> Any:
+def make_typestore() -> Any:
     from rosbags.typesys import Stores, get_typestore
 
     return get_typestore(Stores.ROS2_JAZZY)
@@ -88,20 +88,20 @@ def read_images(path: str | Path, topic: str = "") -> Iterator[BagImage]:
         raise BagError(f"bag {p} has several image topics ({', '.join(sorted(topics))}); set bag_topic")
     else:
         topic = next(iter(topics))
-    store = _typestore()
+    store = make_typestore()
     try:
         with Reader(p) as reader:
             conns = [c for c in reader.connections if c.topic == topic]
             for conn, ts, raw in reader.messages(connections=conns):
                 msg = store.deserialize_cdr(raw, conn.msgtype)
-                yield _bag_image(msg, conn.msgtype, ts)
+                yield bag_image(msg, conn.msgtype, ts)
     except BagError:
         raise
     except Exception as e:
         raise BagError(f"bag {p} is corrupt or truncated: {type(e).__name__}: {e}") from None
 
 
-def _bag_image(msg: Any, msgtype: str, ts: int) -> BagImage:
+def bag_image(msg: Any, msgtype: str, ts: int) -> BagImage:
     """An Image or CompressedImage message of a bag as a BagImage (fields as the ROS message)."""
     if msgtype == IMAGE_TYPE:
         fields = {"height": msg.height, "width": msg.width, "encoding": msg.encoding,
@@ -136,7 +136,7 @@ def write_image_bag(out: str | Path, images: list[Path], topic: str = "/image", 
     out_p = Path(out)
     if out_p.exists():
         raise BagError(f"{out_p} exists; rosbag2 writes a new folder")
-    store = _typestore()
+    store = make_typestore()
     plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
     t0 = 1_700_000_000 * 10**9
     with Writer(out_p, version=9, storage_plugin=plugin) as writer:
@@ -204,7 +204,7 @@ def read_session(path: str | Path, image_topic: str = "", pose_topic: str = "") 
         raise BagError(f"bag {p} has {len(images)} image topics ({', '.join(sorted(images))}); set bag_topic")
     else:
         image_topic = next(iter(images))
-    store = _typestore()
+    store = make_typestore()
     try:
         with Reader(p) as reader:
             conns = [c for c in reader.connections if c.topic in (image_topic, pose_topic)]
@@ -219,7 +219,7 @@ def read_session(path: str | Path, image_topic: str = "", pose_topic: str = "") 
                                   (float(t.x), float(t.y), float(t.z)),
                                   (float(q.x), float(q.y), float(q.z), float(q.w)))
                 else:
-                    yield _bag_image(msg, conn.msgtype, ts)
+                    yield bag_image(msg, conn.msgtype, ts)
     except BagError:
         raise
     except Exception as e:
@@ -246,7 +246,7 @@ def arm_schedule(n_images: int, rate: float, hold: float, pose_rate: float, t0_n
     return sorted(out, key=lambda m: (m[0], m[2] == "image"))
 
 
-class _ArmMessages:
+class ArmMessages:
     """The messages of an arm session bag: each image file read once (sent at every frame of its pose)
     and the tool pose as PoseStamped (``pose_type`` "pose": header.frame_id = the base) or
     TransformStamped ("transform": child_frame_id = the tool)."""
@@ -338,10 +338,10 @@ def write_arm_bag(out: str | Path, images: list[Path], poses_yaml: str | Path, *
     out_p = Path(out)
     if out_p.exists():
         raise BagError(f"{out_p} exists; rosbag2 writes a new folder")
-    store = _typestore()
+    store = make_typestore()
     img_type = COMPRESSED_TYPE if compressed else IMAGE_TYPE
     msg_pose_type = POSE_TYPE if pose_type == "pose" else TRANSFORM_TYPE
-    msgs = _ArmMessages(images, compressed, frame_id, base, tool, pose_type)
+    msgs = ArmMessages(images, compressed, frame_id, base, tool, pose_type)
     with Writer(out_p, version=9, storage_plugin=StoragePlugin.MCAP if storage == "mcap" else
                 StoragePlugin.SQLITE3) as writer:
         img_conn = writer.add_connection(topic, img_type, typestore=store)

@@ -12,7 +12,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from .bags import COMPRESSED_TYPE, IMAGE_TYPE, BagError, BagImage, _ArmMessages, _bag_image, _typestore, image_topics
+from .bags import COMPRESSED_TYPE, IMAGE_TYPE, ArmMessages, BagError, BagImage, bag_image, image_topics, make_typestore
 
 
 def read_image_topics(path: str | Path, topics: tuple[str, str]) -> Iterator[tuple[int, BagImage]]:
@@ -30,13 +30,13 @@ def read_image_topics(path: str | Path, topics: tuple[str, str]) -> Iterator[tup
                        f"{', '.join(sorted(have)) or 'none'}")
     if topics[0] == topics[1]:
         raise BagError(f"the left and the right image topic are both {topics[0]!r}")
-    store = _typestore()
+    store = make_typestore()
     try:
         with Reader(p) as reader:
             conns = [c for c in reader.connections if c.topic in topics]
             for conn, ts, raw in reader.messages(connections=conns):
                 msg = store.deserialize_cdr(raw, conn.msgtype)
-                yield topics.index(conn.topic), _bag_image(msg, conn.msgtype, ts)
+                yield topics.index(conn.topic), bag_image(msg, conn.msgtype, ts)
     except BagError:
         raise
     except Exception as e:
@@ -65,9 +65,9 @@ def write_stereo_bag(out: str | Path, left: list[Path], right: list[Path], *,
     out_p = Path(out)
     if out_p.exists():
         raise BagError(f"{out_p} exists; rosbag2 writes a new folder")
-    store = _typestore()
+    store = make_typestore()
     msgtype = COMPRESSED_TYPE if compressed else IMAGE_TYPE
-    cams = [_ArmMessages(files, compressed, frame_id, "", "", "pose") for files, frame_id in
+    cams = [ArmMessages(files, compressed, frame_id, "", "", "pose") for files, frame_id in
             zip((left, right), frame_ids, strict=True)]
     t0 = 1_700_000_000 * 10**9
     with Writer(out_p, version=9, storage_plugin=StoragePlugin.MCAP if storage == "mcap" else

@@ -23,11 +23,11 @@ from .overlay import (
     PANEL_BGR,
     TEXT_BGR,
     WAIT_BGR,
-    _fit,
-    _text,
-    _unit,
     bar_colour,
+    draw_text,
+    fit_text,
     state_origin,
+    unit_scale,
 )
 
 OUTLINE_BGR = (255, 255, 0)  # cyan: the suggestion, apart from the green / red detection and magenta footprints
@@ -57,7 +57,7 @@ def draw_guide(picture: np.ndarray, v: GuideView, width: int) -> np.ndarray:
     """Draw the guide on ``picture`` (BGR, the frame in its first ``width`` columns); returns it."""
     vis = picture[:, :width]
     h = vis.shape[0]
-    u = _unit(h)
+    u = unit_scale(h)
     thick, font_thick = max(2, round(2 * u)), max(1, round(1.6 * u))
     if len(v.outline) >= 3 and not v.done:
         poly = np.round(np.asarray(v.outline, float)).astype(np.int32).reshape(-1, 1, 2)
@@ -65,8 +65,8 @@ def draw_guide(picture: np.ndarray, v: GuideView, width: int) -> np.ndarray:
     _draw_progress(picture, v, width)
     y = h - round(12 * u)
     for text, colour in reversed(guide_lines(v)):
-        _text(vis, _fit(text, width - round(20 * u), 0.55 * u, font_thick), (round(10 * u), y), 0.55 * u, colour,
-              font_thick, background=(0, 0, 0))
+        draw_text(vis, fit_text(text, width - round(20 * u), 0.55 * u, font_thick), (round(10 * u), y), 0.55 * u,
+                  colour, font_thick, background=(0, 0, 0))
         y -= round(28 * u)
     return picture
 
@@ -86,16 +86,16 @@ def _draw_progress(picture: np.ndarray, v: GuideView, width: int) -> None:
     h = picture.shape[0]
     if picture.shape[1] <= width:
         return
-    u = _unit(h)
+    u = unit_scale(h)
     font_thick = max(1, round(1.6 * u))
     x0, y = state_origin(width, h)
     x1 = picture.shape[1] - (x0 - width)
     cv2.rectangle(picture, (width, y - round(24 * u)), (picture.shape[1] - 1, y + round(120 * u)), PANEL_BGR, -1)
     p = progress(v)
-    _text(picture, f"guide {int(100 * p)}%", (x0, y), 0.6 * u, TEXT_BGR, font_thick)
+    draw_text(picture, f"guide {int(100 * p)}%", (x0, y), 0.6 * u, TEXT_BGR, font_thick)
     top, bottom = y + round(10 * u), y + round(30 * u)
     cv2.rectangle(picture, (x0, top), (x1 - 1, bottom), BAR_EMPTY_BGR, -1)
     if p > 0:
         cv2.rectangle(picture, (x0, top), (x0 + max(1, round(p * (x1 - x0))) - 1, bottom), bar_colour(p), -1)
     state = ("DONE: ~/calibrate" if v.done else "follow the outline")
-    _text(picture, state, (x0, bottom + round(26 * u)), 0.5 * u, BAR_FULL_BGR if v.done else WAIT_BGR, font_thick)
+    draw_text(picture, state, (x0, bottom + round(26 * u)), 0.5 * u, BAR_FULL_BGR if v.done else WAIT_BGR, font_thick)

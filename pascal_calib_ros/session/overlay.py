@@ -52,7 +52,7 @@ def bar_colour(fraction: float) -> tuple[int, int, int]:
     return (0, round(255 * max(0.0, fraction)), 255)
 
 
-def _unit(height: int) -> float:
+def unit_scale(height: int) -> float:
     """The scale of lines, fonts and the panel's layout: 1 at 600 px of image height (at least 0.6,
     so that the panel's content fits a 240 px frame and stays legible)."""
     return max(height, 360) / REFERENCE_HEIGHT
@@ -60,7 +60,7 @@ def _unit(height: int) -> float:
 
 def panel_width(height: int) -> int:
     """Width in px of the panel right of a frame of this height."""
-    return round(PANEL_WIDTH * _unit(height))
+    return round(PANEL_WIDTH * unit_scale(height))
 
 
 def _to_grey8(img: np.ndarray) -> np.ndarray:
@@ -73,7 +73,7 @@ def _to_grey8(img: np.ndarray) -> np.ndarray:
     return np.asarray(cv2.convertScaleAbs(img, alpha=255.0 / (2**depth - 1)))
 
 
-def _text(canvas: np.ndarray, text: str, org: tuple[int, int], scale: float, colour: tuple[int, int, int],
+def draw_text(canvas: np.ndarray, text: str, org: tuple[int, int], scale: float, colour: tuple[int, int, int],
           thickness: int, background: tuple[int, int, int] | None = None) -> int:
     """Put text with its baseline at ``org`` (on a filled box if ``background``); returns its height."""
     font = cv2.FONT_HERSHEY_SIMPLEX
@@ -86,7 +86,7 @@ def _text(canvas: np.ndarray, text: str, org: tuple[int, int], scale: float, col
     return h + base
 
 
-def _fit(text: str, width: int, scale: float, thickness: int) -> str:
+def fit_text(text: str, width: int, scale: float, thickness: int) -> str:
     """``text``, shortened with "..." until it is at most ``width`` px wide."""
     font = cv2.FONT_HERSHEY_SIMPLEX
     if cv2.getTextSize(text, font, scale, thickness)[0][0] <= width:
@@ -104,7 +104,7 @@ def _fit(text: str, width: int, scale: float, thickness: int) -> str:
 def bar_rects(width: int, height: int) -> dict[str, tuple[int, int, int, int]]:
     """(x0, y0, x1, y1) of each coverage bar in the output of :func:`draw_live_overlay` for a
     frame of ``width`` x ``height`` (the full bar; the fill starts at x0)."""
-    u = _unit(height)
+    u = unit_scale(height)
     pw = panel_width(height)
     margin = round(12 * u)
     x0, x1 = width + margin, width + pw - margin
@@ -145,7 +145,7 @@ def _draw_markers(vis: np.ndarray, det: Detection, thick: int, u: float) -> None
     cv2.polylines(vis, quads, True, MARKER_BGR, thick)
     for k, c in zip(det.marker_ids, det.marker_corners, strict=True):
         x, y = np.mean(c, axis=0)
-        _text(vis, str(int(k)), (round(x - 6 * u), round(y + 5 * u)), 0.4 * u, MARKER_BGR, thick)
+        draw_text(vis, str(int(k)), (round(x - 6 * u), round(y + 5 * u)), 0.4 * u, MARKER_BGR, thick)
 
 
 def _draw_detection(vis: np.ndarray, det: Detection | None, verdict: str | None, verdict_ok: bool | None,
@@ -168,15 +168,15 @@ def _draw_detection(vis: np.ndarray, det: Detection | None, verdict: str | None,
     if verdict is None:
         verdict = "no frame" if det is None else ("ok" if det.ok else det.reason)
     good = ok if verdict_ok is None else verdict_ok
-    verdict = _fit(verdict, w - round(20 * u), 0.6 * u, font_thick)
-    _text(vis, verdict, (round(10 * u), round(28 * u)), 0.6 * u, DETECTED_BGR if good else REJECTED_BGR,
+    verdict = fit_text(verdict, w - round(20 * u), 0.6 * u, font_thick)
+    draw_text(vis, verdict, (round(10 * u), round(28 * u)), 0.6 * u, DETECTED_BGR if good else REJECTED_BGR,
           font_thick, background=(0, 0, 0))
 
 
 def state_origin(width: int, height: int) -> tuple[int, int]:
     """(x, y) of the panel's state lines (the view count, then READY or what is missing) below the
     coverage bars, in the output of :func:`draw_live_overlay` for a ``width`` x ``height`` frame."""
-    return bar_rects(width, height)["x"][0], round((48 + 58 * len(AXES) + 10) * _unit(height))
+    return bar_rects(width, height)["x"][0], round((48 + 58 * len(AXES) + 10) * unit_scale(height))
 
 
 def _draw_panel(out: np.ndarray, w: int, coverage: Mapping[str, float], views: int, min_views: int, ready: bool,
@@ -187,7 +187,7 @@ def _draw_panel(out: np.ndarray, w: int, coverage: Mapping[str, float], views: i
     small = 0.5 * u
     for axis, (x0, y0, x1, y1) in bar_rects(w, h).items():
         p = float(np.clip(coverage.get(axis, 0.0), 0.0, 1.0))
-        _text(out, f"{LABELS[axis]} {int(100 * p)}%", (x0, y0 - round(6 * u)), small, TEXT_BGR, font_thick)
+        draw_text(out, f"{LABELS[axis]} {int(100 * p)}%", (x0, y0 - round(6 * u)), small, TEXT_BGR, font_thick)
         cv2.rectangle(out, (x0, y0), (x1 - 1, y1 - 1), BAR_EMPTY_BGR, -1)
         fill = x0 + round(p * (x1 - x0))
         if fill > x0:
@@ -196,19 +196,19 @@ def _draw_panel(out: np.ndarray, w: int, coverage: Mapping[str, float], views: i
         cv2.rectangle(out, (half - thick // 2, y0 - max(2, round(4 * u))), (half + (thick - 1) // 2, y0 - 1),
                       TEXT_BGR, -1)
     x0, y = state_origin(w, h)
-    _text(out, f"views {views}/{min_views}", (x0, y), 0.6 * u, TEXT_BGR, font_thick)
+    draw_text(out, f"views {views}/{min_views}", (x0, y), 0.6 * u, TEXT_BGR, font_thick)
     y += round(34 * u)
     if ready:
-        _text(out, "READY", (x0, y), 0.8 * u, BAR_FULL_BGR, font_thick + 1)
+        draw_text(out, "READY", (x0, y), 0.8 * u, BAR_FULL_BGR, font_thick + 1)
         y += round(26 * u)
-        _text(out, "call ~/calibrate", (x0, y), small, TEXT_BGR, font_thick)
+        draw_text(out, "call ~/calibrate", (x0, y), small, TEXT_BGR, font_thick)
     elif views < min_views:
-        _text(out, f"need {min_views - views} more", (x0, y), 0.6 * u, WAIT_BGR, font_thick)
+        draw_text(out, f"need {min_views - views} more", (x0, y), 0.6 * u, WAIT_BGR, font_thick)
     else:
         short = [LABELS[a] for a in AXES if coverage.get(a, 0.0) < READY_COVERAGE]
-        _text(out, "cover more:", (x0, y), 0.6 * u, WAIT_BGR, font_thick)
+        draw_text(out, "cover more:", (x0, y), 0.6 * u, WAIT_BGR, font_thick)
         y += round(26 * u)
-        _text(out, " ".join(short) or "-", (x0, y), small, WAIT_BGR, font_thick)
+        draw_text(out, " ".join(short) or "-", (x0, y), small, WAIT_BGR, font_thick)
 
 
 def draw_live_overlay(img: np.ndarray, det: Detection | None, footprints: Sequence[np.ndarray],
@@ -226,7 +226,7 @@ def draw_live_overlay(img: np.ndarray, det: Detection | None, footprints: Sequen
     """
     frame = _to_grey8(np.asarray(img))
     h, w = frame.shape[:2]
-    u = _unit(h)
+    u = unit_scale(h)
     pw = panel_width(h)
     # frame and panel in one new image (cv2 is several times faster than numpy at filling BGR)
     if frame.ndim == 2:

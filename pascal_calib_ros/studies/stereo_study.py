@@ -45,7 +45,7 @@ from ..geometry.transform import Transform
 from ..sim.render import Pose, features_in_image, render_view
 from ..sim.rig import RigSession, RigSpec, render_rig, stereo_pair
 from ..targets import resolve_target
-from .study import _board_corners, write_rows
+from .study import opencv_board_corners, write_rows
 
 GOALS = {"rot_err_deg": 0.005, "trans_err_mm": 0.1, "f_err_pct": 0.02, "c_err_px": 0.3}
 QUANTITIES = ("rot_x", "rot_y", "rot_z", "t_x", "t_y", "t_z",
@@ -132,7 +132,7 @@ def _board_pairs(session: RigSession) -> tuple[list[np.ndarray], list[np.ndarray
             if not features_in_image(board_t, rc.camera, pose, margin=3.0):
                 break
             img = render_view(board_t, rc.camera, pose, session.spec.sensor(c, s)).image
-            corners = _board_corners(img, board.inner_corners, subpix=True)
+            corners = opencv_board_corners(img, board.inner_corners, subpix=True)
             if corners is None:
                 break
             found.append(corners)

@@ -95,13 +95,13 @@ def accuracy(out: Path, views: int, seed: int) -> list[dict[str, Any]]:
 
 def _opencv_own_board(cam: Camera, board: Any, imgs: list[np.ndarray]) -> dict[str, Any]:
     """What OpenCV users get on the same checkerboard renders: their corners
-    (``findChessboardCornersSB`` + ``cornerSubPix``, :func:`_board_corners`) and
+    (``findChessboardCornersSB`` + ``cornerSubPix``, :func:`opencv_board_corners`) and
     ``cv2.calibrateCamera`` with its default model (k1, k2, p1, p2, k3), one thread."""
     import cv2
 
     cb = board.checkerboards[0]
     obj = np.c_[cb.corner_points(), np.zeros(len(cb.corner_points()))].astype(np.float32)
-    found = [c for c in (_board_corners(im, cb.inner_corners, True) for im in imgs) if c is not None]
+    found = [c for c in (opencv_board_corners(im, cb.inner_corners, True) for im in imgs) if c is not None]
     label = "OpenCV's own (SB + cornerSubPix, calibrateCamera)"
     if len(found) < MIN_VIEWS_OPENCV:
         return {"method": label, "views": len(found), "error": "board found in fewer than 3 views"}
@@ -319,7 +319,7 @@ def _ours(case: LensCase, cam: Camera, imgs: list[np.ndarray], target_name: str,
     return row, mask
 
 
-def _board_corners(img: np.ndarray, board_size: tuple[int, int], subpix: bool) -> np.ndarray | None:
+def opencv_board_corners(img: np.ndarray, board_size: tuple[int, int], subpix: bool) -> np.ndarray | None:
     """(N, 2) inner corners by ``cv2.findChessboardCornersSB`` (exhaustive, accuracy passes),
     mirrored orders flipped to the sheet's handedness (the 180 degree ambiguity is a rigid motion
     of the board, harmless for calibration); with ``subpix``, then refined by ``cv2.cornerSubPix``
@@ -327,14 +327,14 @@ def _board_corners(img: np.ndarray, board_size: tuple[int, int], subpix: bool) -
     window would swallow the small outer squares of a fisheye view)."""
     import cv2
 
-    from ..detect.checkerboard import _right_handed, refine_corners
+    from ..detect.checkerboard import refine_corners, right_handed
 
     nx, ny = board_size
     found, c = cv2.findChessboardCornersSB(
         img, (nx, ny), flags=cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
     if not found or c is None:
         return None
-    grid = _right_handed(np.asarray(c, float).reshape(ny, nx, 2))
+    grid = right_handed(np.asarray(c, float).reshape(ny, nx, 2))
     if subpix:
         grid = refine_corners(img, grid)
     return grid.reshape(-1, 2)
@@ -404,7 +404,7 @@ def _opencv_rows(case: LensCase, cam: Camera, poses: list[Any], sensors: list[An
             (", SB + cornerSubPix" if subpix else ", SB corners")
         found = {}
         for k in in_view:
-            c = _board_corners(imgs[k], board.inner_corners, subpix)
+            c = opencv_board_corners(imgs[k], board.inner_corners, subpix)
             if c is not None:
                 found[k] = c
         ks = sorted(found)

@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 
 from pascal_calib_ros.detect.checkerboard import (
-    _right_handed,
     coarse_corners,
     corner_clearance,
     corner_radii,
     corner_windows,
     find_checkerboard,
     refine_corners,
+    right_handed,
     saddle_grid,
 )
 from pascal_calib_ros.detect.detection import Detection
@@ -302,8 +302,8 @@ def test_windows_follow_the_squares_as_seen() -> None:
     sheared[..., 0] += 0.9 * sheared[..., 1]
     assert np.allclose(corner_clearance(sheared), 40.0 / np.hypot(1, 0.9))
     # a mirrored order is turned back; a right-handed one is kept
-    assert np.array_equal(_right_handed(grid[::-1]), grid)
-    assert np.array_equal(_right_handed(grid), grid)
+    assert np.array_equal(right_handed(grid[::-1]), grid)
+    assert np.array_equal(right_handed(grid), grid)
 
 
 def test_no_board_no_corners(plain_board: Target, board_target: Target) -> None:

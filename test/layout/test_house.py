@@ -41,3 +41,14 @@ def test_functions_are_short_and_calls_name_their_arguments() -> None:
                 wide_calls.append(f"{p.relative_to(PACKAGE)}:{node.lineno} {ast.unparse(node.func)}")
     assert not long_functions, f"functions over {MAX_FUNCTION_LINES} lines: {long_functions}"
     assert not wide_calls, f"calls with more than {MAX_POSITIONAL} positional arguments: {wide_calls}"
+
+
+def test_no_private_name_is_imported_across_modules() -> None:
+    """A ``_name`` is its module's own (issue 35): another module that needs it gets a public name."""
+    found = []
+    for p in _modules():
+        for node in ast.walk(ast.parse(p.read_text())):
+            if isinstance(node, ast.ImportFrom) and (node.module or node.level):
+                found += [f"{p.relative_to(PACKAGE)}: {a.name}" for a in node.names
+                          if a.name.startswith("_") and not a.name.startswith("__")]
+    assert not found, f"private names imported across modules: {found}"
