@@ -13,9 +13,12 @@ within what the detector handles for this target (:func:`max_tilt_deg`, measured
 the distance in a range (by default what the captured views span, widened: a person's arm, a
 lens's depth of field), and every outer circle's image large enough for the detector (semi-minor
 axis at least ``min_radius_px``, its blob threshold; a checkerboard's squares at least
-``min_square_px``). The candidates are tilted 25 or 45 degrees: the detector finds targets up to
-55-70 degrees (:data:`MAX_TILT_DEG`), but steeper views measure worse and bias more (the edge
-profiles squeezed, corners' subpixel fits skewed), which no covariance shows.
+``min_square_px``), and every circle's image an ellipse the detector accepts, with a margin
+(:mod:`.candidate_shapes`: radial distortion bends a close ring, or one near the border of a wide
+lens, beyond its ellipse and concentric tests). The candidates are tilted 25 or 45 degrees: the
+detector finds targets up to 55-70 degrees (:data:`MAX_TILT_DEG`), but steeper views measure worse
+and bias more (the edge profiles squeezed, corners' subpixel fits skewed), which no covariance
+shows.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ from scipy.spatial.transform import Rotation
 from ..geometry.camera import Camera
 from ..geometry.transform import Transform
 from ..targets import Target
+from .candidate_shapes import shape_shares
 
 # the largest tilt against the line of sight at which the detector still finds the target in
 # most views (measured with `pascal-calib study guided --tilt-limits`, 800x600, blur 1 px)
@@ -37,6 +41,9 @@ PARTIAL_MIN_SHARE = 0.3  # a marker board's candidate keeps at least this share 
 # ... and its markers' bits at least this many px wide where they are smallest: aruco then reads 85-95 %
 # of the markers at 25-45 degrees of tilt (charuco_a3 and aprilgrid_a3 renders at 800x600, blur 1 px)
 MIN_MODULE_PX = 3.2
+# a candidate's circles may use this share of the detector's ellipse limits (:mod:`.candidate_shapes`):
+# the rest is for the outline's pixel noise, the person's placement and the estimate's error
+SHAPE_SHARE = 0.6
 
 
 def max_tilt_deg(target: Target) -> float:
@@ -174,6 +181,9 @@ class Feasibility:
     max_distance: float = np.inf
     min_radius_px: float = 8.0
     min_square_px: float = 7.0
+    # the largest share of the detector's ellipse limits a circle's image may use (lens distortion
+    # and perspective bend it: :mod:`.candidate_shapes`); inf: not checked
+    shape_share: float = SHAPE_SHARE
 
 
 def default_feasibility(target: Target, width: int, distances: np.ndarray | None = None) -> Feasibility:
@@ -326,6 +336,22 @@ def feasibility_problems_of(target: Target, camera: Camera, R: np.ndarray, t: np
             out.append(f"{what} too small ({sq[k]:.1f} px, need {rules.min_square_px:g})")
         else:
             out.append("")
+    return _shape_problems(target, camera, R, t, rules, out)
+
+
+def _shape_problems(target: Target, camera: Camera, R: np.ndarray, t: np.ndarray, rules: Feasibility,
+                    problems: list[str]) -> list[str]:
+    """``problems`` with the poses found feasible so far checked for the circles' shapes: each
+    circle's image an ellipse the detector accepts, within ``rules.shape_share`` of its limits
+    (:func:`.candidate_shapes.shape_shares`)."""
+    ok = [k for k, why in enumerate(problems) if not why]
+    if not ok or not np.isfinite(rules.shape_share):
+        return problems
+    out = list(problems)
+    for k, share in zip(ok, shape_shares(target, camera, R[ok], t[ok]), strict=True):
+        if not share <= rules.shape_share:
+            out[k] = (f"the circles' images are not ellipses the detector accepts (lens distortion and "
+                      f"perspective: {share:.0%} of its limit, {rules.shape_share:.0%} allowed)")
     return out
 
 

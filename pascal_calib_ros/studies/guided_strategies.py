@@ -11,9 +11,10 @@ already.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from ..analysis.candidates import (
     Feasibility,
@@ -22,10 +23,11 @@ from ..analysis.candidates import (
     default_feasibility,
     distance_for_size,
     feasibility_problem,
+    feature_centre,
     outline_points,
     place,
 )
-from ..analysis.view_ranking import suggest_views
+from ..analysis.view_ranking import distinct_from_all, suggest_views
 from ..calibrate.result import CalibrationResult
 from ..detect.detection import CircleEdge, Detection
 from ..geometry.camera import Camera
@@ -42,20 +44,44 @@ from ..targets import Target
 class PersonError:
     """How far a person misses the pose asked for: the target's centre by ``pixel_frac`` of the
     image width per axis, the distance by ``distance_frac``, the tilt by ``tilt_deg``, its axis
-    by ``axis_deg``, the roll by ``roll_deg`` (standard deviations)."""
+    by ``axis_deg``, the roll by ``roll_deg`` (standard deviations). With ``rotation_deg`` or
+    ``position_m`` > 0 the miss is metric instead (:meth:`pose`): the sheet turned by a rotation
+    vector of σ ``rotation_deg`` per axis about the features' centre, that centre moved by σ
+    ``position_m`` per axis (camera frame)."""
 
     pixel_frac: float = 0.03
     distance_frac: float = 0.05
     tilt_deg: float = 5.0
     axis_deg: float = 10.0
     roll_deg: float = 5.0
+    rotation_deg: float = 0.0
+    position_m: float = 0.0
+
+    @property
+    def metric(self) -> bool:
+        return self.rotation_deg > 0 or self.position_m > 0
 
     def apply(self, p: Placement, width: int, rng: np.random.Generator) -> Placement:
+        """The placement missed (the relative error of the class docstring)."""
         e = rng.normal(size=6)
         return Placement((p.pixel[0] + e[0] * self.pixel_frac * width, p.pixel[1] + e[1] * self.pixel_frac * width),
                          p.distance * float(np.exp(e[2] * self.distance_frac)),
                          abs(p.tilt_deg + e[3] * self.tilt_deg), p.axis_deg + e[4] * self.axis_deg,
                          p.roll_deg + e[5] * self.roll_deg)
+
+    def pose(self, target: Target, cam: Camera, p: Placement, rng: np.random.Generator) -> Transform:
+        """camera_T_target of placement ``p`` as the person takes it: relative (:meth:`apply`) or,
+        when :attr:`metric`, R' = exp([ω]) R, c' = c + δ with ω ~ N(0, rotation_deg²), δ ~
+        N(0, position_m²) per axis, c the features' centre in the camera frame."""
+        if not self.metric:
+            return place(target, cam, self.apply(p, cam.width, rng))
+        T = place(target, cam, p)
+        e = rng.normal(size=6)
+        dR = Rotation.from_rotvec(np.radians(self.rotation_deg) * e[:3])
+        c = T.apply(np.r_[feature_centre(target), 0.0])
+        R = dR * T.rotation
+        t = c + self.position_m * e[3:] - R.apply(np.r_[feature_centre(target), 0.0])
+        return Transform(R, t)
 
 
 @dataclass
@@ -87,11 +113,11 @@ def asked(state: SessionState, p: Placement, error: PersonError | None) -> Pose:
     """The pose the person takes when asked for placement ``p`` (made feasible first; the
     person's error applied, retried while it throws the target out of view)."""
     cam, target = state.camera, state.target
-    rules = default_feasibility(target, cam.width)
+    # the person looks at the target's outline, not at its shape: the guide's own rules decide that
+    rules = replace(default_feasibility(target, cam.width), shape_share=np.inf)
     q = _fit(target, cam, p, rules) or p
     for _ in range(8):
-        r = error.apply(q, cam.width, state.rng) if error is not None else q
-        T = place(target, cam, r)
+        T = error.pose(target, cam, q, state.rng) if error is not None else place(target, cam, q)
         if not feasibility_problem(target, cam, T, rules):
             return Pose(T.R, T.translation)
     T = place(target, cam, q)
@@ -100,7 +126,11 @@ def asked(state: SessionState, p: Placement, error: PersonError | None) -> Pose:
 
 class Guided:
     """The guide: fixed bootstrap views, then the best suggestion (:func:`suggest_views`) from the
-    latest calibration. A suggestion whose view was not detected is not asked again."""
+    latest calibration. A suggestion whose view the detector refused is avoided for the rest of the
+    session, as the node's :meth:`..session.guide.GuideState.refuse` does: its placement is passed
+    to :func:`suggest_views` as ``avoid`` (no candidate in its neighbourhood is offered) and the
+    bootstrap views in its neighbourhood are skipped. ``repeated`` counts suggestions in the
+    neighbourhood of a refused one (the guide's promise: 0)."""
 
     name = "guided"
 
@@ -108,27 +138,47 @@ class Guided:
         self.error, self.spec = error, spec
         self.boot = 0
         self.failed: list[Placement] = []
+        self.last: Placement | None = None
         self.fallbacks = 0  # views of the person's own choosing when the guide had no feasible candidate
+        self.repeated = 0
+        self.asked: list[dict[str, object]] = []  # what was asked, for the study's record
 
     def next(self, state: SessionState) -> Pose:
         cal = state.calibration
+        self.last = None
         if cal is None or cal.refinement is None or cal.refinement.covariance is None:
             boot = bootstrap_placements(state.camera, state.target)
-            p = boot[self.boot % len(boot)]
-            self.boot += 1
-            return asked(state, p, self.error)
-        s = suggest_views(cal.refinement, state.target, cal.width, cal.height, n=4)
+            order = self._allowed([boot[(self.boot + k) % len(boot)] for k in range(len(boot))], state.camera)
+            if not order:
+                self.fallbacks += 1
+                return RandomPoses(self.spec).next(state)
+            self.boot = boot.index(order[0]) + 1
+            return self._ask(state, order[0])
+        s = suggest_views(cal.refinement, state.target, cal.width, cal.height, n=4, avoid=self.failed)
         state.sigma_px = s.sigma_px
         if not s.suggestions:  # no feasible candidate: what a person would do, a view of their own
             self.fallbacks += 1
             return RandomPoses(self.spec).next(state)
-        choice = next((r for r in s.suggestions if r.placement not in self.failed), s.suggestions[0])
-        self.last = choice.placement
-        return asked(state, choice.placement, self.error)
+        return self._ask(state, s.suggestions[0].placement)
 
-    def rejected(self) -> None:
-        if hasattr(self, "last"):
+    def _allowed(self, ps: list[Placement], cam: Camera) -> list[Placement]:
+        """``ps`` without those in the neighbourhood of a refused placement."""
+        if not ps or not self.failed:
+            return ps
+        keep = distinct_from_all(ps, self.failed, cam.width, cam.height)
+        return [p for p, k in zip(ps, keep, strict=True) if k]
+
+    def _ask(self, state: SessionState, p: Placement) -> Pose:
+        self.repeated += len(self._allowed([p], state.camera)) == 0
+        self.last = p
+        self.asked.append({"pixel": [round(p.pixel[0]), round(p.pixel[1])], "distance": round(p.distance, 3),
+                           "tilt": round(p.tilt_deg), "axis": round(p.axis_deg), "n": len(state.dets)})
+        return asked(state, p, self.error)
+
+    def rejected(self, reason: str = "") -> None:
+        if self.last is not None:
             self.failed.append(self.last)
+            self.asked[-1]["refused"] = reason
 
 
 class RandomPoses:
@@ -144,7 +194,7 @@ class RandomPoses:
         return random_poses(state.target, state.camera, 1, state.rng, s.tilt_range, s.size_range,
                             pixel_range=s.pixel_range)[0]
 
-    def rejected(self) -> None:
+    def rejected(self, reason: str = "") -> None:
         pass
 
 
@@ -193,7 +243,7 @@ class Diversity:
                 return pose
         return pose
 
-    def rejected(self) -> None:
+    def rejected(self, reason: str = "") -> None:
         pass
 
 
@@ -235,7 +285,7 @@ class Coverage:
         p = Placement((u, v), distance_for_size(target, cam, 0.45), 40.0, d - 90.0, 0.0)
         return asked(state, p, self.error)
 
-    def rejected(self) -> None:
+    def rejected(self, reason: str = "") -> None:
         pass
 
 
@@ -275,7 +325,7 @@ class Checklist:
         self.n += 1
         return asked(state, p, self.error)
 
-    def rejected(self) -> None:
+    def rejected(self, reason: str = "") -> None:
         pass
 
 
