@@ -336,6 +336,7 @@ def _pick_ring(blobs: list[_Blob], target: Target, params: DetectionParams, cut_
     cands: list[tuple[float, _Blob, Ellipse]] = []
     cut = False
     small = 0.0  # the narrowest semi-axis of a ring too small to measure
+    bent = 0.0  # the largest spread of a ring-like shape whose outline and hole are not concentric circles' images
     for b in blobs:
         size = np.sqrt(b.ellipse.a * b.ellipse.b)
         for _, he in b.holes:
@@ -345,7 +346,10 @@ def _pick_ring(blobs: list[_Blob], target: Target, params: DetectionParams, cut_
             # concentric whatever the perspective; the contours' ellipses are uncertain by a few
             # pixels (threshold level, blur, the pixel grid), much of a small hole's shape
             spread, r = concentric_fit(b.ellipse, he)
-            if (spread < 4 * params.ellipse_tolerance + 8 * b.scale / min(he.a, he.b)
+            limit = 4 * params.ellipse_tolerance + 8 * b.scale / min(he.a, he.b)
+            if spread >= limit and abs(r / ratio - 1) < 0.35 + 5 * params.ellipse_tolerance:
+                bent = max(bent, spread / limit)
+            if (spread < limit
                     and abs(r / ratio - 1) < 0.35 + 5 * params.ellipse_tolerance):
                 if min(b.ellipse.a, b.ellipse.b) < params.min_radius:
                     small = max(small, min(b.ellipse.a, b.ellipse.b))
@@ -357,6 +361,10 @@ def _pick_ring(blobs: list[_Blob], target: Target, params: DetectionParams, cut_
         if small:
             raise _Reject(f"ring too small ({2 * small:.0f} px across at its narrowest; "
                           f"at least {2 * params.min_radius:.0f} px)")
+        if bent:
+            raise _Reject(f"ring not the image of concentric circles ({bent:.1f}x the detector's limit): the lens "
+                          "bends a close ring or one near the border of a wide lens; hold it farther or nearer "
+                          "the centre (a fisheye: distortion_model:=equidistant)")
         raise _Reject("no ring found")
     if len(cands) > 1:
         cands.sort(key=lambda c: -c[0])

@@ -170,8 +170,18 @@ class GuideState:
 
     def update(self, refinement: RefineResult | None, width: int, height: int, n_views: int) -> None:
         """After a view was captured: with a calibration (``refinement``, of ``n_views`` >= 3
-        views) the real sigma and the ranked suggestions; without, the next bootstrap view."""
+        views) the real sigma and the ranked suggestions; without, the next bootstrap view, or,
+        when an earlier calibration ranked views and this recalibration failed, the next of those
+        ranked views (never a bootstrap view already taken); the sigma is then unknown."""
+        if (refinement is None or refinement.covariance is None) and n_views > 3 and self.camera is not None \
+                and len(self.suggestions) > 1:
+            self.suggestions = self._allowed(self.suggestions[:self.index] + self.suggestions[self.index + 1:])
+            self.index = 0
+            self.sigma_px = float("nan")
+            if self.suggestions:
+                return
         if refinement is None or refinement.covariance is None or n_views < 3:
+            self.camera = None
             self._bootstrap()
             self.index = max(0, min(n_views, len(self.suggestions) - 1))
             self.sigma_px = float("nan")

@@ -54,7 +54,10 @@ def test_the_share_predicts_the_detectors_answer_on_renders() -> None:
     for p, seen in ((BORDER, False), (CENTRE, True)):
         T = place(ring, WIDE, p)
         img = render_view(ring, WIDE, Pose(T.R, T.translation), SensorModel(blur_sigma=1.0, seed=3)).image
-        assert detect_target(img, ring, params).ok is seen
+        det = detect_target(img, ring, params)
+        assert det.ok is seen
+        # refused for what the lens does to the ring, said so (not "no ring found")
+        assert seen or det.reason.startswith("ring not the image of concentric circles"), det.reason
 
 
 def test_feasibility_refuses_a_bent_ring_and_says_why() -> None:

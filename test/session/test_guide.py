@@ -71,6 +71,11 @@ def test_done_comes_from_the_recalibrated_views(ring_target: Target) -> None:
     assert not g.done and g.suggestions and all(s.predicted_sigma_px < g.sigma_px for s in g.suggestions)
     g.goal_sigma_px = 2 * g.sigma_px
     assert g.done
+    # a recalibration that fails after a view: the next ranked view, never a bootstrap view again
+    ranked = [v.placement for v in g.suggestions]
+    g.update(None, W, H, len(dets) + 1)
+    assert [v.placement for v in g.suggestions] == ranked[1:] and g.index == 0 and not g.done
+    assert np.isnan(g.sigma_px) and g.camera is not None
 
 
 def test_a_refused_view_at_a_suggestion_is_not_offered_again(ring_target: Target) -> None:
