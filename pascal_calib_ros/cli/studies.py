@@ -35,7 +35,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "sessions' views shot again under this many fresh noise draws (default 0: none)")
     s.add_argument("--only", default="", help="trust: only the scenarios whose name contains this text; verify: "
                                               "camera, hand-eye and/or timing; guided: ring, grid, board, fisheye, "
-                                              "arm, timing and/or tilt (comma-separated)")
+                                              "charuco, wide, arm, timing and/or tilt (comma-separated)")
     s.add_argument("--opencv4-python", default="", help="handeye: a Python with OpenCV 4.x for calibrateHandEye")
     s.add_argument("--targets", default="ring_a4,checkerboard_a4", help="handeye: targets, comma-separated")
     s.add_argument("--arm-systematic-mm", type=float, default=0.25,
