@@ -35,6 +35,7 @@ from ..detect.detection import Detection
 from ..detect.target_detector import detect_target
 from ..errors import PascalCalibError
 from ..io.image_msgs import ImageConversionError, compressed_to_grey, grey_to_image_fields, image_to_grey
+from ..session.answer import Answer
 from ..session.collector import placement_points
 from ..session.live import LiveSession, Snapshot, max_motion_of
 from ..workflows.detection import detection_params
@@ -224,13 +225,13 @@ class CalibrationNode(CalibrationNodeBase):
         return Header(stamp=self.get_clock().now().to_msg(), frame_id=self.frame_id)
 
     # -- calibration ------------------------------------------------------------------------
-    def attempt(self) -> tuple[bool, str]:
+    def attempt(self) -> Answer:
         try:
             snap = self.session.snapshot()
             if len(snap.views) < snap.min_views:
                 msg = self.session.refusal(snap, self.session_frames()[1], self.dropped_note())
                 self.get_logger().warn(f"calibration refused: {msg}")
-                return False, msg
+                return Answer(False, msg)
             opts = CalibrationOptions(method=self.method, distortion=str(self.p("distortion_model")),
                                       zero_skew=bool(self.p("zero_skew")),
                                       min_views=min(snap.min_views, len(snap.views)),
@@ -240,33 +241,33 @@ class CalibrationNode(CalibrationNodeBase):
             return self._run_intrinsic(snap.views, opts)
         except Exception as e:  # never let a numerical failure take the node down
             self.get_logger().error(f"calibration crashed: {type(e).__name__}: {e}")
-            return False, f"calibration failed: {type(e).__name__}: {e}"
+            return Answer(False, f"calibration failed: {type(e).__name__}: {e}")
 
-    def _run_intrinsic(self, views: list[Detection], opts: CalibrationOptions) -> tuple[bool, str]:
+    def _run_intrinsic(self, views: list[Detection], opts: CalibrationOptions) -> Answer:
         try:
             out = run_intrinsic(views, self.target, opts, with_cross_validation=bool(self.p("cross_validate")))
         except CalibrationError as e:
             self.get_logger().warn(f"calibration failed: {e}")
-            return False, f"calibration failed: {e}"
+            return Answer(False, f"calibration failed: {e}")
         res = out.assessment.result
         try:
             rs = self._write_outputs(out.assessment, views)
         except FileWriteError as e:
-            return False, f"calibration not published: {e}"
+            return Answer(False, f"calibration not published: {e}")
         self._publish_camera(res)
         answer = out.answer(str(self.calibration_path())) + f" result={rs.id}"
         for line in out.cross_validation_lines:
             self.log(line, out.halves_agree is True)
         self.get_logger().info(f"calibrated: {answer}")
         self.publish_status()
-        return True, answer
+        return Answer(True, answer)
 
-    def _run_hand_eye(self, snap: Snapshot, opts: CalibrationOptions) -> tuple[bool, str]:
+    def _run_hand_eye(self, snap: Snapshot, opts: CalibrationOptions) -> Answer:
         """Intrinsics and hand-eye in one estimate; publishes CameraInfo and ~/hand_eye only if
         the transform can be stood behind (:func:`~..workflows.hand_eye.hand_eye_doubts`)."""
-        def refuse(why: str) -> tuple[bool, str]:
+        def refuse(why: str) -> Answer:
             self.get_logger().warn(f"hand-eye calibration refused: {why}")
-            return False, f"hand-eye calibration failed: {why}"
+            return Answer(False, f"hand-eye calibration failed: {why}")
 
         if self.robot is None:
             return refuse("no robot poses: set robot_pose_topic")
@@ -304,7 +305,7 @@ class CalibrationNode(CalibrationNodeBase):
             self.get_logger().warn(self.tf_static.unavailable, once=True)
         self.get_logger().info(f"calibrated: {summary}")
         self.publish_status()
-        return True, summary
+        return Answer(True, summary)
 
     def _publish_camera(self, res: CalibrationResult) -> None:
         msg = camera_info_msg(camera_info_data(res, str(self.p("camera_name"))), self._header())
@@ -327,19 +328,19 @@ class CalibrationNode(CalibrationNodeBase):
         return rs
 
     # -- services -------------------------------------------------------------------------
-    def capture(self) -> tuple[bool, str]:
+    def capture(self) -> Answer:
         """``~/capture``: store the next still frame (:class:`..session.arm_session.CaptureSlot`)."""
         timeout = float(self.p("capture_timeout"))
         captures = self.session.captures
         capture = captures.open(timeout)
         if capture is None:
-            return False, "a capture is already waiting for a still frame; try again"
+            return Answer(False, "a capture is already waiting for a still frame; try again")
         ok, answer = captures.wait(capture, timeout)
         self.log(f"capture: {answer}", ok)
         self.publish_status()
-        return ok, answer
+        return Answer(ok, answer)
 
-    def verify(self) -> tuple[bool, str]:
+    def verify(self) -> Answer:
         """``~/verify``: the views collected since the last ~/reset against the published calibration
         (:mod:`.node_verify`)."""
         ok, line = run_verification(self)
@@ -347,9 +348,9 @@ class CalibrationNode(CalibrationNodeBase):
             self.verify_line = line
         self.log(f"verify: {line}", ok)
         self.publish_status()
-        return ok, line
+        return Answer(ok, line)
 
-    def reset(self) -> tuple[bool, str]:
+    def reset(self) -> Answer:
         """``~/reset``: the views, the pose buffer, the latched suggestions; the session folder starts over."""
         n = self.session.clear()
         if self.robot is not None:  # a session's stamps start over (a looped bag, a restarted driver)
@@ -365,9 +366,9 @@ class CalibrationNode(CalibrationNodeBase):
                   "is kept")
         self.get_logger().info(answer)
         self.publish_status()
-        return True, answer
+        return Answer(True, answer)
 
-    def commit(self) -> tuple[bool, str]:
+    def commit(self) -> Answer:
         """``~/commit``: the live result to the driver, unless it is stale (:mod:`..session.result_history`)."""
         problem = self.history.commit_problem()
         if problem:
@@ -377,7 +378,7 @@ class CalibrationNode(CalibrationNodeBase):
             ok, answer = commit_camera_info(self.set_info_client, self.result_msg)
             answer = f"{live.describe() if live else 'result'}: {answer}"
         self.log(answer, ok)
-        return ok, answer
+        return Answer(ok, answer)
 
 
 def main(args: list[str] | None = None) -> int:

@@ -22,6 +22,7 @@ from ..detect.detection import Detection
 from ..errors import PascalCalibError
 from ..geometry.camera import Camera
 from ..io.calibration_files import read_calibration_file
+from ..session.answer import Answer
 from ..session.arm_session import MOVING, NO_POSE
 from ..session.guide_overlay import draw_guide
 from ..session.guided_live import GuidedLive, GuideView
@@ -139,7 +140,7 @@ class NodeGuide:
         return "" if not why or why.startswith((MOVING, NO_POSE)) else why
 
     # -- the person guide's hooks (the detector thread) ------------------------------------
-    def examine(self, det: Detection) -> tuple[bool, str] | None:
+    def examine(self, det: Detection) -> Answer | None:
         """The guide's verdict for :meth:`..session.live.LiveSession.examine` (None: no guide)."""
         if self.live is None:
             return None
@@ -149,7 +150,7 @@ class NodeGuide:
             if line:
                 self.node.get_logger().warning(f"guide: the captured view was {line}")
         v = self.live.examine(det)
-        return v.store, v.line
+        return Answer(v.store, v.line)
 
     def stored(self, views: list[Detection]) -> None:
         if self.live is not None:

@@ -17,6 +17,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 
+from ..session.answer import Answer
 from ..session.result_history import ResultHistory
 from ..targets import Target, resolve_target
 from .guard import guarded_callback, guarded_parameters, guarded_service
@@ -24,7 +25,7 @@ from .params import ParameterError, declare_parameters, param_value, params_for,
 
 LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL,
                      history=HistoryPolicy.KEEP_LAST)
-Answer = tuple[bool, str]  # a service's success and message
+Answer = Answer  # a service's success and message
 
 
 class CalibrationNodeBase(Node):
@@ -133,7 +134,7 @@ class CalibrationNodeBase(Node):
         """One attempt at a time; a failed one is labelled (``~/status``'s ``last_attempt``;
         ``~/commit`` then refuses the older result)."""
         if not self.calibrating.acquire(blocking=False):
-            return False, "a calibration is already running; try again when it finishes"
+            return Answer(False, "a calibration is already running; try again when it finishes")
         try:
             ok, answer = self.attempt()
         except Exception as e:  # never let a numerical failure take the node down
@@ -144,7 +145,7 @@ class CalibrationNodeBase(Node):
         if not ok:
             self.history.attempt_failed(answer)
             self.publish_status()
-        return ok, answer
+        return Answer(ok, answer)
 
     def attempt(self) -> Answer:
         """Calibrate the stored views, publish and write a good result (the caller holds the lock)."""

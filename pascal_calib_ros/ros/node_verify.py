@@ -8,19 +8,20 @@ from typing import TYPE_CHECKING
 from ..analysis.verify import Reference
 from ..errors import PascalCalibError
 from ..io.calibration_files import read_calibration_file
+from ..session.answer import Answer
 from ..workflows.verify import hand_eye_reference_of_result, reference_of_file, reference_of_result, verify_views
 
 if TYPE_CHECKING:
     from .calibration_node import CalibrationNode
 
 
-def run_verification(node: CalibrationNode) -> tuple[bool, str]:
+def run_verification(node: CalibrationNode) -> Answer:
     """(success when the test could run, the answer starting with the verdict)."""
     snap = node.session.snapshot()
     try:
         reference = verify_reference(node)
     except PascalCalibError as e:
-        return False, f"nothing to verify against: {e}"
+        return Answer(False, f"nothing to verify against: {e}")
     robot, he_ref = None, None
     if node.hand_eye_result is not None:
         he, parent, cam_frame = node.hand_eye_result
@@ -30,11 +31,11 @@ def run_verification(node: CalibrationNode) -> tuple[bool, str]:
     try:
         _, line = verify_views(snap.views, node.target, reference, robot, he_ref)
     except PascalCalibError as e:
-        return False, f"the views cannot test the calibration: {e}"
+        return Answer(False, f"the views cannot test the calibration: {e}")
     except Exception as e:  # never let a numerical failure take the node down
         node.get_logger().error(f"verification crashed: {type(e).__name__}: {e}")
-        return False, f"verification failed: {type(e).__name__}: {e}"
-    return True, line
+        return Answer(False, f"verification failed: {type(e).__name__}: {e}")
+    return Answer(True, line)
 
 
 def verify_reference(node: CalibrationNode) -> Reference:

@@ -43,6 +43,7 @@ from ..detect.target_detector import detect_target
 from ..errors import PascalCalibError
 from ..io.atomic import FileWriteError
 from ..io.image_msgs import ImageConversionError, compressed_to_grey, image_to_grey
+from ..session.answer import Answer
 from ..session.collector import placement_points
 from ..session.frame_pairing import SIDES, ApproximatePairer, Dropped
 from ..session.live import max_motion_of
@@ -243,11 +244,11 @@ class StereoCalibrationNode(CalibrationNodeBase):
         return StereoSessionOptions(opts, float(self.p("alpha")), str(self.p("camera_name")), str(self.p("left_frame")),
                                     str(self.p("right_frame")))
 
-    def _refuse(self, why: str) -> tuple[bool, str]:
+    def _refuse(self, why: str) -> Answer:
         self.get_logger().warn(f"stereo calibration refused: {why}")
-        return False, f"stereo calibration failed: {why}"
+        return Answer(False, f"stereo calibration failed: {why}")
 
-    def attempt(self) -> tuple[bool, str]:
+    def attempt(self) -> Answer:
         snap = self.session.snapshot()
         if snap.both < snap.min_views:
             return self._refuse(self.session.refusal(snap, self.notes()))
@@ -278,7 +279,7 @@ class StereoCalibrationNode(CalibrationNodeBase):
             if self.report_note:
                 self.get_logger().warn(self.report_note)
         self.publish_status()
-        return True, self.result_line + (f"; {self.report_note}" if self.report_note else "")
+        return Answer(True, self.result_line + (f"; {self.report_note}" if self.report_note else ""))
 
     def _publish(self, outcome: StereoOutcome) -> None:
         infos = outcome.camera_infos()
@@ -293,7 +294,7 @@ class StereoCalibrationNode(CalibrationNodeBase):
             self.get_logger().warn(self.tf_static.unavailable, once=True)
 
     # -- services -------------------------------------------------------------------------
-    def reset(self) -> tuple[bool, str]:
+    def reset(self) -> Answer:
         n = self.session.clear()
         self.auto_done_at = -1
         with self._pending_cv:
@@ -303,9 +304,9 @@ class StereoCalibrationNode(CalibrationNodeBase):
         answer = f"cleared {n} shot(s){running}; the live {live.describe() if live else 'result: none'} is kept"
         self.get_logger().info(answer)
         self.publish_status()
-        return True, answer
+        return Answer(True, answer)
 
-    def commit(self) -> tuple[bool, str]:
+    def commit(self) -> Answer:
         """``~/commit``: each camera's CameraInfo to its own driver, unless the result is stale."""
         problem = "" if self.info_msgs is None else self.history.commit_problem()
         ok, answer = (False, problem) if problem else commit_pair(self.set_info_clients, self.info_msgs)
@@ -313,4 +314,4 @@ class StereoCalibrationNode(CalibrationNodeBase):
         if ok and live is not None:
             answer = f"{live.describe()}: {answer}"
         self.log(f"commit: {answer}", ok)
-        return ok, answer
+        return Answer(ok, answer)

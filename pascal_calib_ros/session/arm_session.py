@@ -39,6 +39,7 @@ import numpy as np
 from ..detect.detection import Detection
 from ..geometry.conic import ellipses_from_conics
 from ..geometry.transform import Transform, interpolate
+from .answer import Answer
 
 ROBOT_STILL_MM = 0.1  # the robot moved if its pose changed by more than this between two frames
 ROBOT_STILL_DEG = 0.01
@@ -388,7 +389,7 @@ class CaptureSlot:
             capture.frames += 1
             capture.last_reason = reason
 
-    def wait(self, capture: Capture, timeout_s: float, now: float | None = None) -> tuple[bool, str]:
+    def wait(self, capture: Capture, timeout_s: float, now: float | None = None) -> Answer:
         """Block until the request is answered or its deadline passes (then refuse it)."""
         left = capture.deadline - (time.monotonic() if now is None else now)
         capture.done.wait(max(0.0, left))
@@ -398,7 +399,7 @@ class CaptureSlot:
             else:
                 why = "no frame arrived"
             self.finish(capture, False, f"nothing stored within {timeout_s:g} s (capture_timeout): {why}")
-        return capture.success, capture.message
+        return Answer(capture.success, capture.message)
 
 
 def view_placement(det: Detection) -> tuple[float, float, float, float] | None:

@@ -23,6 +23,7 @@ from ..detect.detection import Detection
 from ..geometry.conic import ellipses_from_conics
 from ..geometry.transform import Transform
 from ..targets import Target
+from .answer import Answer
 
 AXES = ("x", "y", "size", "skew")
 SPANS = {"x": 0.6, "y": 0.6, "size": 0.25, "skew": 0.3}
@@ -85,7 +86,7 @@ class ViewCollector:
     last_rejection: str = ""
     board_points: np.ndarray | None = None  # the target's board corners on the sheet (a board-only target)
 
-    def offer(self, det: Detection, robot_pose: Transform | None = None, force: bool = False) -> tuple[bool, str]:
+    def offer(self, det: Detection, robot_pose: Transform | None = None, force: bool = False) -> Answer:
         """Store the view if usable and new enough (``force``: whatever it resembles) with its
         robot pose; returns (accepted, reason)."""
         if not det.ok:
@@ -105,13 +106,13 @@ class ViewCollector:
         self.views.append(det)
         self.params.append(p)
         self.robot_poses.append(robot_pose)
-        return True, "accepted"
+        return Answer(True, "accepted")
 
-    def reject(self, reason: str) -> tuple[bool, str]:
+    def reject(self, reason: str) -> Answer:
         key = reason.split("(")[0].strip()  # group by kind, without the per-frame figures
         self.rejected[key] += 1
         self.last_rejection = reason
-        return False, reason
+        return Answer(False, reason)
 
     def coverage(self) -> dict[str, float]:
         if not self.params:

@@ -19,6 +19,7 @@ import numpy as np
 from ..detect.detection import Detection, feature_points
 from ..geometry.image_field import view_hulls
 from ..geometry.transform import Transform
+from .answer import Answer
 from .arm_session import MOVING, CaptureSlot, PoseBuffer, StillnessGate, capture_is_final, stored_message
 from .collector import ViewCollector
 from .overlay import draw_live_overlay
@@ -59,7 +60,7 @@ class FrameOutcome:
     accepted: bool
     why: str
     verdict_ok: bool
-    capture_answer: tuple[bool, str] | None
+    capture_answer: Answer | None
     views: int
     ready: bool
     overlay: tuple[list[np.ndarray], dict[str, float], int] | None  # footprints, coverage, min views
@@ -87,17 +88,17 @@ class LiveSession:
             self.collector.reject(f"bad frame: {reason}")
 
     def examine(self, det: Detection, stamp_ns: int, poses: PoseBuffer | None, pose_max_age: float,
-                received_at: float, drawing: bool, guide: tuple[bool, str] | None = None,
+                received_at: float, drawing: bool, guide: Answer | None = None,
                 persist: Persist | None = None) -> FrameOutcome:
         """Apply the session's policy to one frame's detection (module docstring); ``drawing``: also
         return what the live picture needs; ``persist``: writes a stored view (its detection and robot
         pose) before a waiting ``~/capture`` is answered, and says what it did (an error is appended to
         the answer: the view stays in memory). ``guide`` (a guided session, :mod:`.guided_live`): with
-        ``collect="auto"`` a usable, still frame is stored only when ``guide[0]`` (it matches the
-        suggestion; then whatever it resembles), else its line says ``guide[1]``."""
+        ``collect="auto"`` a usable, still frame is stored only when ``guide.ok`` (it matches the
+        suggestion; then whatever it resembles), else its line says ``guide.message``."""
         verdict = self.gate.examine(det, stamp_ns, poses, pose_max_age)
         capture = self.captures.for_frame(received_at)
-        answer: tuple[bool, str] | None = None
+        answer: Answer | None = None
         accepted = False
         why = verdict.reason or ("ok" if det.ok else det.reason)
         with self.lock:
@@ -108,18 +109,18 @@ class LiveSession:
                         accepted, why = col.offer(det, verdict.robot_pose, force=True)
                     else:
                         accepted, why = col.reject(verdict.reason)
-                    answer = (accepted, stored_message(len(col.views) - 1, det, verdict.robot_pose)
-                              if accepted else f"nothing stored: {why}")
-                    why = answer[1]
+                    answer = Answer(accepted, stored_message(len(col.views) - 1, det, verdict.robot_pose)
+                                    if accepted else f"nothing stored: {why}")
+                    why = answer.message
                 else:
                     col.reject(verdict.reason)
                     self.captures.note(capture, verdict.reason)
             elif self.collect == "auto" and guide is not None:
-                if verdict.usable and guide[0]:
+                if verdict.usable and guide.ok:
                     accepted, why = col.offer(det, verdict.robot_pose, force=True)
                     why = f"view {len(col.views) - 1} stored" if accepted else f"ok; not stored: {why}"
                 elif verdict.usable:
-                    why = f"ok; not stored: {guide[1]}"
+                    why = f"ok; not stored: {guide.message}"
                 else:
                     col.reject(verdict.reason)
             elif self.collect == "auto":
@@ -136,7 +137,7 @@ class LiveSession:
             n, ready = len(col.views), col.ready
         written = persist(det, verdict.robot_pose) if accepted and persist is not None else ""
         if answer is not None and written.startswith(NOT_WRITTEN):
-            answer = (answer[0], f"{answer[1]}; {written}")
+            answer = Answer(answer.ok, f"{answer.message}; {written}")
         if capture is not None and answer is not None:
             self.captures.finish(capture, *answer)
         return FrameOutcome(accepted=accepted, why=why, verdict_ok=verdict.usable and (accepted or capture is None),

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..detect.detection import Detection, feature_points
 from ..geometry.image_field import view_hulls
+from .answer import Answer
 from .arm_session import MOVING, StillnessGate
 from .collector import NO_PLACE, READY_COVERAGE, ViewCollector, view_parameters
 from .frame_pairing import SIDES
@@ -61,10 +62,10 @@ class StereoCollector:
         cov = self.coverage()
         return self.both >= self.min_views and min(min(c.values()) for c in cov) >= READY_COVERAGE
 
-    def reject(self, reason: str) -> tuple[bool, str]:
+    def reject(self, reason: str) -> Answer:
         self.rejected[_key(reason)] += 1
         self.last_rejection = reason
-        return False, reason
+        return Answer(False, reason)
 
     def _is_new(self, c: int, p: np.ndarray) -> bool:
         params = self.cameras[c].params

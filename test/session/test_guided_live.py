@@ -13,6 +13,7 @@ import pytest
 from pascal_calib_ros.analysis.candidates import Placement, place
 from pascal_calib_ros.calibrate.options import CalibrationOptions
 from pascal_calib_ros.detect.target_detector import detect_target
+from pascal_calib_ros.session.answer import Answer
 from pascal_calib_ros.session.guide_overlay import OUTLINE_BGR, draw_guide, guide_lines, progress
 from pascal_calib_ros.session.guided_live import COMPUTING, NEAR_OVERLAP, REFUSED_FRAMES, GuidedLive
 from pascal_calib_ros.session.live import LiveSession
@@ -52,13 +53,13 @@ def test_the_guide_stores_matching_views_and_says_done_from_the_real_sigma(ring_
         # far from the suggestion: not stored, the hint says what to do
         verdict = guide.examine(det_far)
         assert not verdict.store and verdict.line.startswith("match ")
-        out = session.examine(det_far, k, None, 0.1, 0.0, drawing=False, guide=(verdict.store, verdict.line))
+        out = session.examine(det_far, k, None, 0.1, 0.0, drawing=False, guide=Answer(verdict.store, verdict.line))
         assert not out.accepted and "not stored: match" in out.why
         # at the suggestion (the guide's own pose, drawn with the true camera: the bootstrap's guess differs)
         img, det = _frame(ring_target, guide.state.current.pose, 10 + k)  # type: ignore[union-attr]
         verdict = guide.examine(det)
         assert verdict.store, (k, verdict.line)
-        out = session.examine(det, 100 + k, None, 0.1, 0.0, drawing=True, guide=(verdict.store, verdict.line))
+        out = session.examine(det, 100 + k, None, 0.1, 0.0, drawing=True, guide=Answer(verdict.store, verdict.line))
         assert out.accepted and out.why == f"view {stored} stored"
         stored += 1
         guide.stored(session.snapshot().views)
