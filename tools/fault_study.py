@@ -24,11 +24,13 @@ import tempfile
 import threading
 import time
 from collections import Counter
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 import yaml
 from arm_cell import Cell
+from diagnostic_msgs.msg import DiagnosticArray
 from node_processes import NodeProcess, RosClient
 
 from pascal_calib_ros.io.session_folder import SessionFolder
@@ -58,16 +60,17 @@ def whole_set(out: Path) -> bool:
     return {"cell_cam.yaml", "cell_cam.calibration.json", "hand_eye.yaml"} <= names
 
 
-def call(client: RosClient, node: NodeProcess, name: str, timeout: float, ready_only: bool = False) -> Any:
-    """A Trigger call that gives up (None) as soon as the node's process has ended; ``ready_only``:
-    only wait until the node's services answer (then None)."""
+def _running(status: list[Any], node: NodeProcess) -> bool:
+    """The node sent a status (it spins), or its process ended."""
+    return bool(status) or node.proc.poll() is not None
+
+
+def call(client: RosClient, node: NodeProcess, name: str, timeout: float) -> Any:
+    """A Trigger call that gives up (None) as soon as the node's process has ended."""
     from std_srvs.srv import Trigger
 
-    cli = client.node.create_client(Trigger, f"/pascal_calib/{'capture' if ready_only else name}")
+    cli = client.node.create_client(Trigger, f"/pascal_calib/{name}")
     try:
-        if ready_only:
-            client.spin_until(lambda: cli.service_is_ready() or node.proc.poll() is not None, 60)
-            return None
         if not client.spin_until(lambda: cli.service_is_ready() or node.proc.poll() is not None, 60) or \
                 node.proc.poll() is not None:
             return None
@@ -87,6 +90,8 @@ def session_run(work: Path, sim: Any, dom: int, kills: int, rng: random.Random) 
     work.mkdir(parents=True, exist_ok=True)
     client = RosClient(dom)
     cell = Cell(client, sim.images["ring_a4"], sim.robot_poses)
+    status: list[Any] = []
+    client.node.create_subscription(DiagnosticArray, "/pascal_calib/status", status.append, 10)
     n, life = len(sim.robot_poses), 0
     events: list[str] = []
     phase = ["start-up"]
@@ -104,10 +109,12 @@ def session_run(work: Path, sim: Any, dom: int, kills: int, rng: random.Random) 
             if len(events) < kills:  # a moment in start-up (a quarter of the kills), the captures or ~/calibrate
                 left = n - (len(SessionFolder.open(session).views) if resume else 0)
                 delay = rng.uniform(0.0, 4.0) if rng.random() < 0.25 else None
-                if delay is None:  # once the node answers: a moment in what is left to do
-                    if call(client, node, "status_probe", 0.1, ready_only=True) is None and node.proc.poll() is None:
-                        delay = rng.uniform(0.0, CAPTURE_S * left + CALIBRATE_S)
-                killer = threading.Timer(delay or 0.0, kill, (node.proc,))
+                if delay is None:  # once the node runs (its first status): a moment in what is left to do
+                    status.clear()
+                    client.spin_until(partial(_running, status, node), 120)
+                    phase[0] = "the first capture"
+                    delay = rng.uniform(0.0, CAPTURE_S * left + CALIBRATE_S)
+                killer = threading.Timer(delay, kill, (node.proc,))
                 killer.start()
             done = False
             while node.proc.poll() is None:
