@@ -5,7 +5,7 @@ uncertainty; the pages (:mod:`.pages`) draw them."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
@@ -205,5 +205,5 @@ def hand_eye_numbers(he: Any) -> dict[str, Any]:
                              "rotation_share_deg": np.asarray(he.arm_share_deg).tolist()},
             "robot_error_mm": he.robot_error_mm, "robot_error_deg": he.robot_error_deg,
             "views_used": he.views_used, "rms_px": he.rms_px,
-            "per_view": [{k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in pv.items()}
-                         for pv in he.per_view]}
+            "per_view": [{k: (None if isinstance(v, float) and not np.isfinite(v) else v)
+                          for k, v in asdict(pv).items()} for pv in he.per_view]}

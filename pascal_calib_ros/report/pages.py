@@ -253,11 +253,11 @@ def panel_hand_eye(ax: Any, he: Any) -> None:
     deg x 10), beside what the arm's pose error the data imply predicts for it (the norm of three
     axes: sqrt(3) sigma); views refused by the chain check in red."""
     pv = he.per_view
-    names = [v["name"] for v in pv]
+    names = [v.name for v in pv]
     x = np.arange(len(pv))
-    mm = np.array([v.get("disagreement_mm", np.nan) for v in pv], float)
-    deg = np.array([v.get("disagreement_deg", np.nan) for v in pv], float)
-    used = np.array([v["used"] for v in pv], bool)
+    mm = np.array([v.disagreement_mm for v in pv], float)
+    deg = np.array([v.disagreement_deg for v in pv], float)
+    used = np.array([v.used for v in pv], bool)
     mm, deg10 = np.where(np.isfinite(mm), mm, 0.0), np.where(np.isfinite(deg), 10 * deg, 0.0)
     # the scale of the used views and of what the arm's error predicts; a refused view's bar is cut there
     # and its value written on it

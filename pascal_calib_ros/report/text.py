@@ -170,11 +170,11 @@ def hand_eye_summary(he: HandEyeResult) -> str:
              "per axis",
              "per view (chain vs images):"]
     for v in he.per_view:
-        if v["used"]:
-            lines.append(f"  used      {v['name']}  {v['disagreement_mm']:.3f} mm  {v['disagreement_deg']:.4f} deg")
+        if v.used:
+            lines.append(f"  used      {v.name}  {v.disagreement_mm:.3f} mm  {v.disagreement_deg:.4f} deg")
         else:
-            extra = (f"  ({v['disagreement_mm']:.1f} mm, {v['disagreement_deg']:.2f} deg)"
-                     if np.isfinite(v.get("disagreement_mm", np.nan)) else "")
-            lines.append(f"  rejected  {v['name']}  {v['reason']}{extra}")
+            extra = (f"  ({v.disagreement_mm:.1f} mm, {v.disagreement_deg:.2f} deg)"
+                     if np.isfinite(v.disagreement_mm) else "")
+            lines.append(f"  rejected  {v.name}  {v.reason}{extra}")
     lines += [f"warning: {w}" for w in he.warnings]
     return "\n".join(lines)

@@ -229,7 +229,7 @@ def _guided_next(h: HandEyeResult | None, dets: list[Any], tools: list[Transform
     """The guide's best tool pose from the latest hand-eye calibration (None: none)."""
     if h is None or h.calibration.refinement is None:
         return None
-    used = [i for i, v in enumerate(h.per_view) if v["used"]]
+    used = [i for i, v in enumerate(h.per_view) if v.used]
     ref = h.calibration.refinement
     noise = ViewPredictor(Linearisation.of_refinement(ref), spec.width, spec.height).noise
     model = arm_model(h, [tools[i] for i in used], target, noise, spec.width, spec.height)

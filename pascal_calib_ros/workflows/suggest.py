@@ -166,7 +166,7 @@ def arm_suggestions(dets: list[Detection], robot: list[Transform | None], target
     ref = h.calibration.refinement
     if ref is None or ref.covariance is None:
         raise SuggestError("the calibration has no covariance to predict from (refinement failed)")
-    used = [k for k, v in enumerate(h.per_view) if v["used"]]
+    used = [k for k, v in enumerate(h.per_view) if v.used]
     poses = [robot[k] for k in used]
     assert all(p is not None for p in poses)
     w, hgt = h.calibration.width, h.calibration.height

@@ -31,7 +31,7 @@ def arm_case():  # type: ignore[no-untyped-def]
     dets = [detect_target(img, target) for img in s.images[target.name]]
     h = calibrate_hand_eye(dets, list(s.robot_poses), target, "eye_in_hand",
                            he=HandEyeOptions(jackknife_groups=0))
-    used = [k for k, v in enumerate(h.per_view) if v["used"]]
+    used = [k for k, v in enumerate(h.per_view) if v.used]
     poses = [s.robot_poses[k] for k in used]
     noise = ViewPredictor(Linearisation.of_refinement(h.calibration.refinement), W, H).noise
     return target, arm_model(h, poses, target, noise, W, H), poses
@@ -73,7 +73,7 @@ def test_a_single_ring_has_a_gauge_the_prediction_leaves_out() -> None:
                                              systematic_mm=0.0))
     dets = [detect_target(img, target) for img in s.images[target.name]]
     h = calibrate_hand_eye(dets, list(s.robot_poses), target, "eye_in_hand", he=HandEyeOptions(jackknife_groups=0))
-    used = [k for k, v in enumerate(h.per_view) if v["used"]]
+    used = [k for k, v in enumerate(h.per_view) if v.used]
     intrinsic = ViewPredictor(Linearisation.of_refinement(h.calibration.refinement), W, H)
     model = arm_model(h, [s.robot_poses[k] for k in used], target, intrinsic.noise, W, H)
     now, joint = intrinsic.sigma_now(), model.predictor.sigma_now()

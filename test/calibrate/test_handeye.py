@@ -133,7 +133,7 @@ def test_joint_estimate_on_a_rendered_eye_in_hand_session(ring_target: Target, a
     # the ring's centre lies where the target pose puts it (its rotation about the axis is free)
     ctr = np.array([*ring_target.rings[0].center, 0.0])
     assert np.linalg.norm(res.target.apply(ctr) - s.target_pose.apply(ctr)) < 1e-3
-    assert all(v["used"] and v["disagreement_mm"] < 2 for v in res.per_view)
+    assert all(v.used and v.disagreement_mm < 2 for v in res.per_view)
 
 
 def test_a_robot_pose_from_another_view_is_dropped_with_the_reason(ring_target: Target, arm_session) -> None:
@@ -142,7 +142,7 @@ def test_a_robot_pose_from_another_view_is_dropped_with_the_reason(ring_target: 
     poses[2] = poses[5]  # a wrong frame: the pose of another view
     res = calibrate_hand_eye(dets, poses, ring_target, "eye_in_hand")
     bad = res.per_view[2]
-    assert not bad["used"] and "disagrees with the image" in bad["reason"], bad
+    assert not bad.used and "disagrees with the image" in bad.reason, bad
     assert res.views_used == 6
     assert hand_eye_errors(res.hand_eye, s.hand_eye)[0] < 1.5
 
@@ -239,7 +239,7 @@ def test_grid_labelled_turned_in_some_views_is_relabelled_through_the_chain() ->
         dets[k] = replace(dets[k], edges=[replace(e, circle=perm[e.circle]) for e in dets[k].edges])
     res = calibrate_hand_eye(dets, s.robot_poses, grid, "eye_in_hand")
     assert any("relabelled" in w for w in res.warnings), res.warnings
-    assert res.views_used == 8, [v for v in res.per_view if not v["used"]]
+    assert res.views_used == 8, [v for v in res.per_view if not v.used]
     err_mm, err_deg, _, _ = hand_eye_errors(res.hand_eye, s.hand_eye)
     assert err_mm < 1.0 and err_deg < 0.1, (err_mm, err_deg)
 

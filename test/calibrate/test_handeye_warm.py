@@ -54,8 +54,8 @@ def test_a_session_grown_view_by_view_gets_the_cold_estimate(session) -> None:
         np.testing.assert_allclose(warm.translation_std_mm, cold.translation_std_mm, rtol=1e-3)
         np.testing.assert_allclose(warm.rotation_std_deg, cold.rotation_std_deg, rtol=1e-3)
         assert warm.robot_error_mm == pytest.approx(cold.robot_error_mm, rel=1e-3)
-        assert [v["used"] for v in warm.per_view] == [v["used"] for v in cold.per_view]
-        kept = [k for k, v in enumerate(warm.per_view) if v["used"]]
+        assert [v.used for v in warm.per_view] == [v.used for v in cold.per_view]
+        kept = [k for k, v in enumerate(warm.per_view) if v.used]
         assert nxt.kept == tuple(kept)
         assert start.chain_start(kept, list(nxt.poses), [0.0] * len(kept), 7) is not None  # the chain started warm
         start = nxt

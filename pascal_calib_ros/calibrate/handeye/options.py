@@ -52,6 +52,18 @@ class HandEyeOptions:
                 ">= 0 mm and a finite correlation length > 0 m")
 
 
+@dataclass(frozen=True)
+class HandEyeView:
+    """One view of a hand-eye session: used or why not, and how far its robot chain disagrees with
+    its image (translation mm, rotation deg; NaN where not measured)."""
+
+    name: str
+    used: bool
+    reason: str = ""
+    disagreement_mm: float = float("nan")
+    disagreement_deg: float = float("nan")
+
+
 @dataclass
 class HandEyeResult:
     calibration: CalibrationResult
@@ -64,7 +76,7 @@ class HandEyeResult:
     rms_px: float
     robot_error_mm: float  # the arm's pose error per axis the data imply (estimated sigma)
     robot_error_deg: float
-    per_view: list[dict] = field(default_factory=list)  # name, used, reason, disagreement_mm, disagreement_deg
+    per_view: list[HandEyeView] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     closed_form: Transform | None = None  # X from the closed form (Park-Martin, or the ring's linear start)
     target_std_mm: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))

@@ -82,7 +82,7 @@ from .closed_form import (
     target_from_chain,
 )
 from .labelling import label_consistently, target_symmetries
-from .options import HAND_EYE_MODES, MIN_VIEWS, HandEyeError, HandEyeOptions, HandEyeResult
+from .options import HAND_EYE_MODES, MIN_VIEWS, HandEyeError, HandEyeOptions, HandEyeResult, HandEyeView
 from .outliers import Disagreement, drop_disagreeing_views
 from .sigma import Spread
 from .view_poses import posed_views, refined_poses
@@ -206,25 +206,23 @@ def calibrate_hand_eye_warm(dets: list[Detection], robot_poses: Sequence[Transfo
 
 
 def _per_view(reports: list[ViewReport], kept: list[int], dropped: dict[int, Disagreement],
-              disagreement: tuple[np.ndarray, np.ndarray]) -> list[dict]:
+              disagreement: tuple[np.ndarray, np.ndarray]) -> list[HandEyeView]:
     """Per view of the session: name, used, reason, and its chain's disagreement (mm, deg)."""
     mm, deg = disagreement
     pos = {k: j for j, k in enumerate(kept)}
     out = []
     for k, rep in enumerate(reports):
         if k in pos:
-            out.append({"name": rep.name, "used": True, "reason": "", "disagreement_mm": float(mm[pos[k]]),
-                        "disagreement_deg": float(deg[pos[k]])})
+            out.append(HandEyeView(rep.name, True, "", float(mm[pos[k]]), float(deg[pos[k]])))
         else:
             d = dropped.get(k)
-            out.append({"name": rep.name, "used": False, "reason": rep.reason or "not used",
-                        "disagreement_mm": d.mm if d else float("nan"),
-                        "disagreement_deg": d.deg if d else float("nan")})
+            out.append(HandEyeView(rep.name, False, rep.reason or "not used", d.mm if d else float("nan"),
+                                   d.deg if d else float("nan")))
     return out
 
 
 def _result(cal: CalibrationResult, sol: ChainSolution, views: list[ViewData], reports: list[ViewReport],
-            warnings: list[str], he: HandEyeOptions, per_view: list[dict], X0: Transform, spread: Spread,
+            warnings: list[str], he: HandEyeOptions, per_view: list[HandEyeView], X0: Transform, spread: Spread,
             target: Target) -> HandEyeResult:
     """The hand-eye result: the camera of the joint estimate (its views' residuals), X and Y (the
     target's pose in its YAML frame) with their sigmas."""
