@@ -125,7 +125,7 @@ def session_run(work: Path, sim: Any, dom: int, kills: int, rng: random.Random) 
                     call(client, node, "capture", 15)
                     continue
                 phase[0] = "~/calibrate (solving, writing the result set)"
-                r = call(client, node, "calibrate", 180)
+                r = call(client, node, "calibrate", 900)
                 done = r is not None and r.success
                 break
             if killer is not None:
