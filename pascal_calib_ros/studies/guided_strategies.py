@@ -24,7 +24,6 @@ from ..analysis.candidates import (
     distance_for_size,
     feasibility_problem,
     feature_centre,
-    outline_points,
     place,
 )
 from ..analysis.view_ranking import distinct_from_all, suggest_views
@@ -327,17 +326,6 @@ class Checklist:
 
     def rejected(self, reason: str = "") -> None:
         pass
-
-
-def target_in_view(target: Target, cam: Camera, T: Transform, margin: float = 3.0) -> bool:
-    """Whether every outline point images inside the image (a view the detector can use)."""
-    pts = outline_points(target)
-    X = T.apply(np.c_[pts, np.zeros(len(pts))])
-    if not cam.lens.wide and np.any(X[:, 2] <= 0):
-        return False
-    uv = cam.project(X)
-    return bool(np.all(np.isfinite(uv)) and np.all((uv >= margin) & (uv <= [cam.width - 1 - margin,
-                                                                             cam.height - 1 - margin])))
 
 
 STRATEGIES = ("guided", "random", "diversity", "coverage", "checklist")
