@@ -4,6 +4,7 @@ and what the estimated target shape means."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -13,9 +14,7 @@ from ..geometry.camera import Camera
 from ..geometry.lens import LensModel
 from ..geometry.model_field import consistent_rays
 from ..targets import Target
-from .plumbline import (
-    equidistant_focal,
-)
+from .plumbline import equidistant_focal, has_straight_rows
 from .refine import RefineResult
 from .result import CalibrationError
 
@@ -52,13 +51,27 @@ PINHOLE_MAX_FIELD_DEG = 85.0  # rays this far from the axis are beyond what an x
 PINHOLE_CHECK_RATIO = 0.7  # the field is estimated only when the edges reach r > 0.7 fx of the fit
 
 
+class BeyondPinholeFieldError(CalibrationError):
+    """The views see rays a pinhole model cannot describe: a fact about the lens and the views,
+    estimated independently of the fit (no other start changes it)."""
+
+
 def refuse_beyond_pinhole_field(usable: list[Detection], target: Target, lens: LensModel, w: int, h: int,
-                                 fx: float) -> None:
+                                 fx: float, fisheye_field: Callable[[], float] | None = None) -> None:
     """A pinhole model (x = X/Z) cannot describe rays near or beyond 90 degrees, but fitted to a
     fisheye it may still reach a small RMS in one of several minima (which one was seen to change
     with the BLAS kernel, as was whether it drops the views at the rim as outliers). The field
     every usable view covers is estimated independently of the fit, with the generic fisheye lens
-    r = f theta of :func:`equidistant_focal`; a field wider than PINHOLE_MAX_FIELD_DEG is refused."""
+    r = f theta of :func:`equidistant_focal`; a field wider than PINHOLE_MAX_FIELD_DEG is refused.
+
+    From straight rows (grids, checkerboards: their rays coplanar) that f is sound. From single
+    rings it is not: it is the f that makes the edges most nearly conics in the virtual pinhole
+    image, and a lens that is not equidistant (r = f tan(theta) (1 + k1 rho^2 + ...), k1 = -0.28)
+    makes it low: 88-95 degrees were estimated for a lens whose image corners see 65. Such an
+    estimate is replaced by ``fisheye_field()`` when given: the field (degrees) of the same edge
+    points under the equidistant model *calibrated* on the views, theta = r (1 + k1 theta^2 + ...)
+    / f with its f and coefficients fitted (it describes rays at and beyond 90 degrees, so a fisheye
+    is still refused); NaN when that calibration fails (the generic estimate stands)."""
     if not any(d.edges for d in usable):
         return  # corners only: the fold check (check_model_fits) covers them
     pts = np.concatenate([e.points for d in usable for e in d.edges])
@@ -70,10 +83,16 @@ def refuse_beyond_pinhole_field(usable: list[Detection], target: Target, lens: L
     sparse = [replace(d, edges=[replace(e, points=e.points[::4]) for e in d.edges])
               for d in usable[:: max(1, len(usable) // 12)]]
     field = float(np.degrees(r_far / equidistant_focal(sparse, target)))
-    if field > PINHOLE_MAX_FIELD_DEG:
-        raise CalibrationError(f"the views see rays up to about {field:.0f} degrees from the optical axis (estimated "
-                               f"with a generic fisheye lens); a {lens.name} model (x/z) cannot describe rays near "
-                               "or beyond 90 degrees: use --distortion equidistant (fisheye)")
+    if field <= PINHOLE_MAX_FIELD_DEG:
+        return
+    if not has_straight_rows(sparse, target) and fisheye_field is not None:
+        calibrated = fisheye_field()
+        field = field if np.isnan(calibrated) else calibrated
+        if field <= PINHOLE_MAX_FIELD_DEG:
+            return
+    raise BeyondPinholeFieldError(f"the views see rays up to about {field:.0f} degrees from the optical axis "
+                                  f"(estimated with an equidistant fisheye lens); a {lens.name} model (x/z) cannot "
+                                  "describe rays near or beyond 90 degrees: use --distortion equidistant (fisheye)")
 
 
 # a fitted model that folds over under more than this share of the observed edge points is refused

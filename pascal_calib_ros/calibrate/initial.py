@@ -25,7 +25,7 @@ from ..geometry.circular import (
 )
 from ..geometry.conic import Ellipse, ellipses_from_conics, fit_conics_algebraic, normalize_conic
 from ..geometry.homography import fit_homography
-from ..geometry.iac import IacSolution, iac_from_circular_points
+from ..geometry.iac import IacSolution, IndefiniteOmegaError, iac_focal_only, iac_from_circular_points
 from ..targets import Target
 
 CIRCLE_METHODS = ("ring", "pt2", "pt1", "huang")
@@ -132,10 +132,12 @@ def circular_points_of_grid_view(det: Detection, target: Target, method: str, ma
     return pts
 
 
-def intrinsics_closed_form(dets: list[Detection], target: Target, method: str, zero_skew: bool = False
-                           ) -> tuple[IacSolution, list[int], dict[int, str]]:
+def intrinsics_closed_form(dets: list[Detection], target: Target, method: str, zero_skew: bool = False,
+                           focal_only: bool = False) -> tuple[IacSolution, list[int], dict[int, str]]:
     """K from the circular points of the usable views. Returns the solution, the indices of the
-    views used and a reason for every view that could not give a circular point."""
+    views used and a reason for every view that could not give a circular point. ``focal_only``:
+    when the full w is not positive definite, f alone with the principal point at the image centre
+    (:func:`..geometry.iac.iac_focal_only`)."""
     pts, used, failed = [], [], {}
     for k, d in enumerate(dets):
         try:
@@ -147,7 +149,12 @@ def intrinsics_closed_form(dets: list[Detection], target: Target, method: str, z
         except (CircularPointError, np.linalg.LinAlgError) as exc:
             failed[k] = str(exc)
     w, h = dets[0].width, dets[0].height
-    return iac_from_circular_points(pts, w, h, zero_skew), used, failed
+    try:
+        return iac_from_circular_points(pts, w, h, zero_skew), used, failed
+    except IndefiniteOmegaError:
+        if not focal_only:
+            raise
+        return iac_focal_only(pts, w, h), used, failed
 
 
 @dataclass(frozen=True)

@@ -17,17 +17,33 @@ from ..geometry.circular import CircularPointError
 from ..geometry.iac import DegenerateViewsError
 from ..geometry.lens import DISTORTION_CHOICES
 from ..targets import Target
-from .checks import MISFIT_RMS, check_model_fits, check_result, refuse_beyond_pinhole_field, shape_warnings
+from .checks import (
+    MISFIT_RMS,
+    BeyondPinholeFieldError,
+    check_model_fits,
+    check_result,
+    refuse_beyond_pinhole_field,
+    shape_warnings,
+)
 from .initial import (
+    CIRCLE_METHODS,
     pose_to_params,
     pose_with_camera,
 )
 from .observations import ViewData, observations
 from .options import LOSS_SCALES, CalibrationOptions, checked_options, checked_views
-from .problem import intrinsic_names, shape_frame_of
+from .problem import DISTORTION_MODELS, intrinsic_names, shape_frame_of
 from .refine import RefineResult, refine
 from .result import CalibrationError, CalibrationResult, ViewReport
-from .start import closed_form_start, start_distortion, start_poses, zhang_start
+from .start import (
+    RESTART_KAPPAS,
+    DegenerateStartError,
+    closed_form_start,
+    division_start,
+    start_distortion,
+    start_poses,
+    zhang_start,
+)
 from .zhang import calibrate_zhang
 
 DEFAULT_OPTIONS = CalibrationOptions()
@@ -37,12 +53,11 @@ def calibrate(dets: list[Detection], target: Target, options: CalibrationOptions
               ) -> CalibrationResult:
     """Calibrate from detections (one per view, rejected ones included for the report): checked
     options and views, a closed-form start (circular points, grid homographies, or OpenCV's
-    calibration of checkerboard corners), the refinement (outlier observations and views dropped),
-    views that had no start posed with the refined camera and added, the target's shape if asked
-    for."""
-    prep = prepare(dets, target, options)
-    first = first_refinement(dets, target, prep)
-    return first if isinstance(first, CalibrationResult) else finish(dets, target, prep, first)
+    calibration of checkerboard corners; for circles under strong distortion, restarts from
+    division-model starts: :func:`cold_calibration`), the refinement (outlier observations and
+    views dropped), views that had no start posed with the refined camera and added, the target's
+    shape if asked for."""
+    return cold_calibration(dets, target, options)[0]
 
 
 @dataclass
@@ -61,9 +76,77 @@ def prepare(dets: list[Detection], target: Target, options: CalibrationOptions) 
     return Prepared(opt, reports, usable)
 
 
-def first_refinement(dets: list[Detection], target: Target, prep: Prepared) -> Refined | CalibrationResult:
+def cold_calibration(dets: list[Detection], target: Target, options: CalibrationOptions
+                     ) -> tuple[CalibrationResult, Prepared, Refined | None]:
+    """The calibration from the closed-form start, its checked views and its first refinement
+    (None without refinement). When that start fails (w not positive definite, a refused or folded
+    model; not views too few or too parallel for w, nor a field too wide for a pinhole) or ends
+    with an edge RMS above MISFIT_RMS, and the lens may be the cause (:func:`restartable`), the
+    calibration is restarted from division-model starts (:func:`restarted`) and the better fit is
+    kept; a result the plain start gives and that fits is never touched."""
+    prep = prepare(dets, target, options)
+    try:
+        first = first_refinement(dets, target, prep)
+        if isinstance(first, CalibrationResult):
+            return first, prep, None
+        cal = finish(dets, target, prep, first)
+    except (DegenerateStartError, BeyondPinholeFieldError):
+        raise  # the views' geometry or the lens's field: another start would only hide it
+    except CalibrationError:
+        if not restartable(prep.opt, target):
+            raise
+        again = restarted(dets, target, options, float("inf"))
+        if again is None:
+            raise
+        return again
+    if cal.rms <= MISFIT_RMS or not restartable(prep.opt, target):
+        return cal, prep, first
+    return restarted(dets, target, options, cal.rms) or (cal, prep, first)
+
+
+def restartable(opt: CalibrationOptions, target: Target) -> bool:
+    """Whether a failed start may be the lens's fault and :func:`restarted` can help: a circle
+    method's closed form (not grids, which straighten their rows first, nor a fisheye, drawn in a
+    virtual pinhole camera) with a radial distortion to refine."""
+    lens = DISTORTION_CHOICES[opt.distortion][0]
+    return (opt.refine and opt.method in CIRCLE_METHODS and not target.grids and not lens.wide
+            and "k1" in DISTORTION_MODELS[opt.distortion])
+
+
+RESTART_FINISHES = 3  # restarted starts carried through the checks, best first refinement first
+
+
+def restarted(dets: list[Detection], target: Target, options: CalibrationOptions, rms_to_beat: float
+              ) -> tuple[CalibrationResult, Prepared, Refined] | None:
+    """The calibration from the division-model starts (:func:`.start.division_start`): each start
+    refined, the best first refinements (edge RMS) carried through :func:`finish` until one passes
+    its checks with an edge RMS below ``rms_to_beat``; None if none does. All of them minimise the
+    same cost over the same observations; the starts differ only in which minimum they reach."""
+    firsts: list[tuple[float, Prepared, Refined]] = []
+    for kappa in RESTART_KAPPAS:
+        prep = prepare(dets, target, options)
+        try:
+            first = first_refinement(dets, target, prep, kappa)
+        except CalibrationError:
+            continue
+        if isinstance(first, Refined) and np.isfinite(first.res.rms):
+            firsts.append((first.res.rms, prep, first))
+    firsts.sort(key=lambda t: t[0])
+    for _, prep, first in firsts[:RESTART_FINISHES]:
+        try:
+            cal = finish(dets, target, prep, first)
+        except CalibrationError:
+            continue
+        if cal.rms < rms_to_beat:
+            return cal, prep, first
+    return None
+
+
+def first_refinement(dets: list[Detection], target: Target, prep: Prepared, kappa: float | None = None
+                     ) -> Refined | CalibrationResult:
     """The closed-form start and the first refinement of the views it posed; the calibration itself
-    when there is no refinement (``--no-refine``, OpenCV's answer as it stands)."""
+    when there is no refinement (``--no-refine``, OpenCV's answer as it stands). ``kappa``: the
+    circle methods' start from edges undistorted by that division model (:func:`.start.division_start`)."""
     opt, reports, usable = prep.opt, prep.reports, prep.usable
     w, h = dets[0].width, dets[0].height
     lens = DISTORTION_CHOICES[opt.distortion][0]
@@ -71,6 +154,8 @@ def first_refinement(dets: list[Detection], target: Target, prep: Prepared) -> R
         if not opt.refine:
             return _zhang(dets, target, opt, reports, w, h)
         start = zhang_start(dets, usable, target, opt, reports)
+    elif kappa is not None:
+        start = division_start(dets, usable, target, opt, reports, kappa)
     else:
         start = closed_form_start(dets, usable, target, opt, reports)
     if not opt.refine:
@@ -130,7 +215,8 @@ def finish(dets: list[Detection], target: Target, prep: Prepared, first: Refined
     _report_views(res, idx, dets, reports)
     check_result(res, w, h, warnings)
     if not lens.wide:
-        refuse_beyond_pinhole_field([dets[k] for k in usable], target, lens, w, h, res.K[0, 0])
+        refuse_beyond_pinhole_field([dets[k] for k in usable], target, lens, w, h, res.K[0, 0],
+                                    lambda: _fisheye_field(dets, usable, target, opt))
     folded = check_model_fits(res, lens, w, h)
     if not lens.wide and res.rms > MISFIT_RMS:
         _refuse_if_fisheye_fits(dets, target, opt, res.rms)
@@ -253,17 +339,38 @@ def target_shape_frame(target: Target, origin: tuple[float, float]) -> tuple[flo
     return shape_frame_of(np.concatenate(pts) - np.array(origin))
 
 
+def _fisheye_rms(dets: list[Detection], target: Target, opt: CalibrationOptions) -> float:
+    """Edge RMS (px) of the equidistant (fisheye) model calibrated on the same views; inf if it fails."""
+    try:
+        return calibrate(dets, target, replace(opt, distortion="equidistant")).rms
+    except CalibrationError:
+        return float("inf")
+
+
+def _fisheye_field(dets: list[Detection], usable: list[int], target: Target, opt: CalibrationOptions) -> float:
+    """The angle (degrees) from the optical axis of the farthest edge points (99.9th percentile) under
+    the equidistant model calibrated on the same views (rays at and beyond 90 degrees included); NaN
+    if that calibration fails."""
+    try:
+        fish = calibrate(dets, target, replace(opt, distortion="equidistant"))
+    except CalibrationError:
+        return float("nan")
+    rays = fish.camera().unproject(np.concatenate([e.points for k in usable for e in dets[k].edges]))
+    rays = rays[np.all(np.isfinite(rays), 1)]
+    if not len(rays):
+        return float("nan")
+    cos = rays[:, 2] / np.linalg.norm(rays, axis=1)
+    return float(np.percentile(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))), 99.9))
+
+
 def _refuse_if_fisheye_fits(dets: list[Detection], target: Target, opt: CalibrationOptions, rms: float) -> None:
     """A pinhole polynomial fitted to a fisheye does not fold, it just fits badly: when the edge
     RMS is high, the equidistant model is tried on the same views; if it fits three times better
     the result is refused and the model named, rather than a camera that is wrong everywhere."""
-    try:
-        fish = calibrate(dets, target, replace(opt, distortion="equidistant"))
-    except CalibrationError:
-        return
-    if fish.rms < rms / 3:
+    fish = _fisheye_rms(dets, target, opt)
+    if fish < rms / 3:
         raise CalibrationError(f"the {opt.distortion} model does not fit this lens (edge RMS {rms:.2f} px); the "
-                               f"equidistant (fisheye) model fits the same views with {fish.rms:.3f} px: use "
+                               f"equidistant (fisheye) model fits the same views with {fish:.3f} px: use "
                                "--distortion equidistant (node: distortion_model equidistant)")
 
 

@@ -239,6 +239,12 @@ def equidistant_focal(dets: list[Detection], target: Target) -> float:
     return _golden_log(lambda f: _conic_misfit(dets, f), lo, hi, iterations=30)
 
 
+def has_straight_rows(dets: list[Detection], target: Target) -> bool:
+    """Whether :func:`equidistant_focal` fits f to straight rows (grid centres, checkerboard corners:
+    three or more in a row in some view) rather than to single-ring conics."""
+    return any(_lines_of_centres(d, target) or _corner_lines(d, target) for d in dets)
+
+
 def virtual_pinhole_detections(dets: list[Detection], f: float) -> list[Detection]:
     """Copies of the detections drawn in the virtual pinhole camera of the equidistant guess:
     edge points beyond VIRTUAL_MAX_ANGLE dropped (an edge keeps at least half of its points or is

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..detect.detection import Detection
 from ..geometry.circular import CircularPointError
-from ..geometry.iac import DegenerateViewsError, IacSolution
+from ..geometry.iac import DegenerateViewsError, IacSolution, IndefiniteOmegaError
 from ..geometry.lens import DISTORTION_CHOICES
 from ..targets import Target
 from .initial import (
@@ -32,6 +32,11 @@ from .plumbline import (
 from .problem import DISTORTION_MODELS
 from .result import CalibrationError, ViewReport
 from .zhang import calibrate_zhang
+
+
+class DegenerateStartError(CalibrationError):
+    """The views' circular points do not determine w (too few views, parallel or fronto-parallel
+    planes): a fact about the views' geometry that no other start changes."""
 
 
 @dataclass
@@ -99,13 +104,51 @@ def closed_form_start(dets: list[Detection], usable: list[int], target: Target, 
             grid_poses = {usable[k]: p for k, p in enumerate(poses) if p is not None}
         else:
             sol, used_local, failed = intrinsics_closed_form(good, target, opt.method, opt.zero_skew)
-    except DegenerateViewsError as exc:
+    except IndefiniteOmegaError as exc:
         raise CalibrationError(str(exc)) from None
+    except DegenerateViewsError as exc:
+        raise DegenerateStartError(str(exc)) from None
     for k_local, why in failed.items():
         rep = reports[usable[k_local]]
         rep.used, rep.reason = False, f"{opt.method}: {why}"
     return ClosedFormStart(sol, [usable[k] for k in used_local], grid_poses, init_dets, lam,
                            [sol.warning] if sol.warning else [])
+
+
+# k1-equivalents kappa of the division models tried by :func:`division_start` (lambda = kappa / F^2,
+# F the image's half diagonal): barrel to pincushion; the refinement is the judge among them
+RESTART_KAPPAS = (-0.1, -0.2, -0.3, -0.4, -0.5, -0.6, -0.8, 0.1, 0.2)
+
+
+def division_start(dets: list[Detection], usable: list[int], target: Target, opt: CalibrationOptions,
+                   reports: list[ViewReport], kappa: float) -> ClosedFormStart:
+    """A closed-form start with the distortion taken out by a guessed division model, for circles
+    without straight rows to find it from (a single ring through a strongly distorting lens).
+
+    The edges are undistorted by p_u = c + (p - c) / (1 + lambda |p - c|^2) (Fitzgibbon 2001; c the
+    image centre, lambda = kappa / F^2, F the half diagonal), the conics refitted and the circular
+    points' closed form run on them (w = K^-T K^-1 from i'^T w i' = 0). A single ring's conics
+    cannot tell lambda: a projective conic absorbs most of a radial distortion, so neither the
+    edges' misfit to their conics nor the consistency of the circular points picks it (both were
+    measured flat or biased on a k1 = -0.28 lens); but the refinement converges from a K within
+    ~10 % of the truth with D = 0, and one of the kappas of :data:`RESTART_KAPPAS` gives one that
+    close: the caller refines each and keeps the best fit. Where the full w is still not positive
+    definite (small rings far from the centre), f alone is solved for with the principal point at
+    the image centre (:func:`..geometry.iac.iac_focal_only`). D0 is plumb_bob's closest k1 (k2) to
+    lambda (:func:`start_distortion`), the poses come from the undistorted conics. Raises
+    :class:`CalibrationError` when w is degenerate or no f fits."""
+    w, h = dets[0].width, dets[0].height
+    lam = kappa / ((w * w + h * h) / 4.0)
+    init = undistort_detections(dets, lam)
+    try:
+        sol, used_local, failed = intrinsics_closed_form([init[k] for k in usable], target, opt.method,
+                                                         opt.zero_skew, focal_only=True)
+    except DegenerateViewsError as exc:
+        raise CalibrationError(str(exc)) from None
+    for k_local, why in failed.items():
+        rep = reports[usable[k_local]]
+        rep.used, rep.reason = False, f"{opt.method}: {why}"
+    return ClosedFormStart(sol, [usable[k] for k in used_local], {}, init, lam, [sol.warning] if sol.warning else [])
 
 
 def start_poses(dets: list[Detection], start: ClosedFormStart, target: Target, opt: CalibrationOptions,
@@ -121,7 +164,8 @@ def start_poses(dets: list[Detection], start: ClosedFormStart, target: Target, o
             elif target.grids:
                 pose = pose_from_circles(start.init_dets[k], target, start.sol.K, origin)
             else:
-                pose = pose_from_view(start.init_dets[k] if lens.wide else dets[k], target, start.sol.K, origin)
+                drawn = lens.wide or start.division != 0.0  # the edges the closed form ran on
+                pose = pose_from_view(start.init_dets[k] if drawn else dets[k], target, start.sol.K, origin)
         except (CircularPointError, np.linalg.LinAlgError) as exc:
             reports[k].used, reports[k].reason = False, f"pose: {exc}"
             continue

@@ -26,10 +26,10 @@ from .initial import pose_to_params, pose_with_camera
 from .lm import WARM_START, levenberg_marquardt
 from .observations import ViewData, observations
 from .options import LOSS_SCALES, CalibrationOptions
-from .pipeline import Prepared, Refined, finish, first_refinement, pose_dof, prepare, refine_prepared
+from .pipeline import Prepared, Refined, cold_calibration, finish, pose_dof, prepare, refine_prepared
 from .problem import Problem
 from .refine import RefineResult
-from .result import CalibrationResult
+from .result import CalibrationError, CalibrationResult
 
 
 @dataclass(frozen=True)
@@ -58,14 +58,15 @@ def calibrate_session(dets: list[Detection], target: Target, options: Calibratio
         prep = prepare(dets, target, options)
         first = _warm_first(dets, target, prep, start)
         if first is not None:
-            cal = finish(dets, target, prep, first)
-            if _plain(cal, prep, first):
+            try:
+                cal = finish(dets, target, prep, first)
+            except CalibrationError:  # the cold path may restart where the warm one cannot
+                cal = None
+            if cal is not None and _plain(cal, prep, first):
                 return cal, IntrinsicStart(tuple(dets), target, options, first, cal)
-    prep = prepare(dets, target, options)
-    cold = first_refinement(dets, target, prep)
-    if isinstance(cold, CalibrationResult):
-        return cold, None
-    cal = finish(dets, target, prep, cold)
+    cal, prep, cold = cold_calibration(dets, target, options)
+    if cold is None:
+        return cal, None
     return cal, IntrinsicStart(tuple(dets), target, options, cold, cal) if _plain(cal, prep, cold) else None
 
 

@@ -23,6 +23,11 @@ class DegenerateViewsError(PascalCalibError):
     """The views do not determine w (too few, parallel planes, fronto-parallel only)."""
 
 
+class IndefiniteOmegaError(DegenerateViewsError):
+    """The views determine a w, but it is not positive definite: no camera has it (noise, or conics
+    bent by lens distortion the closed form does not model)."""
+
+
 @dataclass(frozen=True)
 class IacSolution:
     K: np.ndarray
@@ -81,7 +86,7 @@ def k_from_omega(omega: np.ndarray) -> np.ndarray:
     try:
         L = np.linalg.cholesky(w)
     except np.linalg.LinAlgError:
-        raise DegenerateViewsError(
+        raise IndefiniteOmegaError(
             "the image of the absolute conic is not positive definite: the views are too noisy or "
             "nearly degenerate; add views with the target tilted 20-45 degrees in different directions"
         ) from None
@@ -119,3 +124,28 @@ def iac_from_circular_points(points: list[np.ndarray], width: float, height: flo
     omega = T.T @ wn @ T
     K = k_from_omega(omega)
     return IacSolution(K, omega / np.linalg.norm(omega), ratio, warning)
+
+
+def iac_focal_only(points: list[np.ndarray], width: float, height: float) -> IacSolution:
+    """w of a camera with square pixels, no skew and the principal point at the image centre: the
+    start when the full w is not positive definite. In coordinates centred on the image,
+    K = diag(f, f, 1) and w ~ diag(1, 1, f^2), so each i' = (x, y, z) gives x^2 + y^2 + f^2 z^2 = 0;
+    f^2 by least squares over the views (each i' scaled to unit norm):
+    f^2 = -Re(sum conj(z^2) (x^2 + y^2)) / sum |z|^4. Raises :class:`IndefiniteOmegaError` when
+    f^2 <= 0 (the circular points contradict any such camera)."""
+    c = np.array([width / 2.0, height / 2.0, 0.0])
+    num, den = 0.0, 0.0
+    for i in points:
+        q = np.asarray(i, complex)
+        q = q - c * q[2]  # centred on the image
+        q = q / np.linalg.norm(q)
+        x, y, z = q
+        num += float(np.real(np.conj(z * z) * (x * x + y * y)))
+        den += float(abs(z) ** 4)
+    if den <= 0 or -num / den <= 0:
+        raise IndefiniteOmegaError("no focal length fits the circular points (f^2 <= 0)")
+    f = float(np.sqrt(-num / den))
+    K = np.array([[f, 0.0, c[0]], [0.0, f, c[1]], [0.0, 0.0, 1.0]])
+    Ki = np.linalg.inv(K)
+    omega = Ki.T @ Ki
+    return IacSolution(K, omega / np.linalg.norm(omega), float("nan"))
