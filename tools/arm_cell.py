@@ -1,5 +1,5 @@
 """A robot cell from a client node: an arm resting at one pose of a simulated session, its tool pose
-published at 20 Hz and its camera's frame at 5 Hz, stamped now; ``capture(k)`` moves to pose k,
+published at 20 Hz and its camera's frame at ``frame_hz`` (5 Hz), stamped now; ``capture(k)`` moves to pose k,
 waits for the rest and calls ``~/capture``. Used by the session tests (test/ros/test_ros_session.py)
 and the fault study (tools/fault_study.py). Import it with tools/ on ``sys.path``."""
 
@@ -16,16 +16,18 @@ RosClient = Any  # node_processes.RosClient
 
 class Cell:
     """An arm resting at pose :attr:`k` of a simulated session: its tool pose at 20 Hz and its
-    camera's frame at 5 Hz, stamped now + :attr:`shift_ns` (a recording replayed with its own stamps:
+    camera's frame at ``frame_hz`` (5 Hz), stamped now + :attr:`shift_ns` (a recording replayed with its own stamps:
     set it back to loop), from the client node."""
 
-    def __init__(self, client: RosClient, images: list[np.ndarray], poses: list[Transform]) -> None:
+    def __init__(self, client: RosClient, images: list[np.ndarray], poses: list[Transform], frame_hz: float = 5.0
+                 ) -> None:
         from geometry_msgs.msg import PoseStamped
         from sensor_msgs.msg import Image
 
         from pascal_calib_ros.io.image_msgs import grey_to_image_fields
 
         self.client, self.k, self.ticks, self.shift_ns = client, 0, 0, 0
+        self.every = max(1, round(20.0 / frame_hz))  # frames every this many 20 Hz ticks
         self.fields = [grey_to_image_fields(im) for im in images]
         self.poses = poses
         self.pub_pose = client.node.create_publisher(PoseStamped, "/tool_pose", 50)
@@ -38,7 +40,7 @@ class Cell:
         self.ticks += 1
         stamp = self.stamp()
         self.pose(stamp)
-        if self.ticks % 4 == 0:
+        if self.ticks % self.every == 0:
             img = Image(**self.fields[self.k])
             img.header.stamp, img.header.frame_id = stamp, "camera"
             self.pub_img.publish(img)
