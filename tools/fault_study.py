@@ -74,7 +74,7 @@ def call(client: RosClient, node: NodeProcess, name: str, timeout: float) -> Any
         if not client.spin_until(lambda: cli.service_is_ready() or node.proc.poll() is not None, 60) or \
                 node.proc.poll() is not None:
             return None
-        client.spin_until(lambda: False, 0.5)  # the response writer matches the new client
+        client.spin_until(lambda: False, 2.0)  # the response writer matches the new client (slow when loaded)
         fut = cli.call_async(Trigger.Request())
         client.spin_until(lambda: fut.done() or node.proc.poll() is not None, timeout)
         return fut.result() if fut.done() else None
@@ -125,7 +125,11 @@ def session_run(work: Path, sim: Any, dom: int, kills: int, rng: random.Random) 
                     call(client, node, "capture", 15)
                     continue
                 phase[0] = "~/calibrate (solving, writing the result set)"
-                r = call(client, node, "calibrate", 900)
+                r = None
+                for _ in range(3):  # a request or answer lost while DDS matches a new client: ask again
+                    r = call(client, node, "calibrate", 900)
+                    if r is not None or node.proc.poll() is not None:
+                        break
                 done = r is not None and r.success
                 break
             if killer is not None:
