@@ -12,7 +12,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from arm_cell import Cell
 from ros_harness import NodeProcess, RosClient, latest_status, next_domain_id, require_netns, status_subscription
 
 from pascal_calib_ros.cli import main as cli_main
@@ -39,6 +38,8 @@ def _node(params: dict, dom: int, log: Path) -> NodeProcess:
 
 
 def test_a_killed_arm_session_resumes_with_the_same_views(tmp_path: Path, arm) -> None:
+    from arm_cell import Cell  # tools/ (on sys.path through ros_harness)
+
     sim = arm
     images, poses = sim.images["ring_a4"], sim.robot_poses  # type: ignore[attr-defined]
     session, out = tmp_path / "session", tmp_path / "out"
@@ -60,11 +61,16 @@ def test_a_killed_arm_session_resumes_with_the_same_views(tmp_path: Path, arm) -
         refused = _node(params, dom, tmp_path / "b.log")
         assert refused.proc.wait(30) == 2, refused.log()
         assert "already holds a session with views: continue it (resume)" in refused.log(), refused.log()
-        status.clear()  # the killed node's last status
         second = _node({**params, "resume": True}, dom, tmp_path / "c.log")
-        assert client.spin_until(lambda: latest_status(status).get("views_with_robot_pose") == "4", 60), (
-            f"{latest_status(status)}\n{second.log()}")
-        assert "4 view(s) resumed" in second.log()
+        # the resumed node's own status (the killed node's last ones may still be on their way)
+        assert client.spin_until(lambda: "4 view(s) resumed" in second.log(), 120), second.log()
+        started = client.node.get_clock().now().nanoseconds
+
+        def resumed() -> bool:
+            fresh = [m for m in status if m.header.stamp.sec * 10**9 + m.header.stamp.nanosec > started]
+            return bool(fresh) and {kv.key: kv.value for kv in fresh[-1].status[0].values}.get(
+                "views_with_robot_pose") == "4"
+        assert client.spin_until(resumed, 60), f"{latest_status(status)}\n{second.log()}"
         answers = [cell.capture(k) for k in range(4, VIEWS)]
         assert all(a.startswith("True view ") for a in answers), f"{answers}\n{second.log()}"
         r = client.call_trigger("/pascal_calib/calibrate", timeout=120)
