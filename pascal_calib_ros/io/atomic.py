@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+from collections.abc import Callable
 from pathlib import Path
 
 from ..errors import PascalCalibError
@@ -27,24 +28,31 @@ def fsync_folder(folder: Path) -> None:
             os.close(fd)
 
 
-def write_bytes_atomic(path: str | Path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` atomically (module docstring), creating the folder. Raises
-    :class:`FileWriteError` with the reason."""
-    p = Path(path)
-    tmp = p.with_name(f".{p.name}.{os.getpid()}.tmp")
+def _replace(p: Path, tmp: Path, make: Callable[[Path], None], failure: str) -> Path:
+    """Make ``tmp`` (``make``), rename it over ``p`` and flush the folder; on an OSError remove
+    ``tmp`` and raise :class:`FileWriteError` starting with ``failure``."""
     try:
         p.parent.mkdir(parents=True, exist_ok=True)
-        with open(tmp, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
+        make(tmp)
         os.replace(tmp, p)
     except OSError as e:
         with contextlib.suppress(OSError):
             tmp.unlink(missing_ok=True)
-        raise FileWriteError(f"cannot write {p}: {e.strerror or e}") from None
+        raise FileWriteError(f"{failure}: {e.strerror or e}") from None
     fsync_folder(p.parent)
     return p
+
+
+def write_bytes_atomic(path: str | Path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically (module docstring), creating the folder. Raises
+    :class:`FileWriteError` with the reason."""
+    def make(tmp: Path) -> None:
+        with open(tmp, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+    p = Path(path)
+    return _replace(p, p.with_name(f".{p.name}.{os.getpid()}.tmp"), make, f"cannot write {p}")
 
 
 def write_text_atomic(path: str | Path, text: str) -> Path:
@@ -56,17 +64,9 @@ def replace_symlink(link: str | Path, target: str | Path) -> Path:
     """Point the symbolic link ``link`` at ``target`` atomically (a new link renamed over the old
     one; readers see the old target or the new one). ``target`` is stored as given (relative
     targets resolve against the link's folder)."""
-    p = Path(link)
-    tmp = p.with_name(f".{p.name}.{os.getpid()}.link")
-    try:
-        p.parent.mkdir(parents=True, exist_ok=True)
+    def make(tmp: Path) -> None:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
         os.symlink(target, tmp)
-        os.replace(tmp, p)
-    except OSError as e:
-        with contextlib.suppress(OSError):
-            tmp.unlink(missing_ok=True)
-        raise FileWriteError(f"cannot point {p} at {target}: {e.strerror or e}") from None
-    fsync_folder(p.parent)
-    return p
+    p = Path(link)
+    return _replace(p, p.with_name(f".{p.name}.{os.getpid()}.link"), make, f"cannot point {p} at {target}")
