@@ -30,6 +30,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..geometry.camera import Camera
+from ..geometry.placement import Placement
 from ..geometry.transform import Transform
 from ..targets import Target
 from .candidate_shapes import shape_shares
@@ -80,19 +81,6 @@ def feature_extent(target: Target) -> float:
     """The features' larger bounding-box side (m)."""
     p = outline_points(target)
     return float(np.max(p.max(0) - p.min(0)))
-
-
-@dataclass(frozen=True)
-class Placement:
-    """How a candidate is placed: the features' centre on ``pixel`` at ``distance`` m, tilted by
-    ``tilt_deg`` against the line of sight about the in-plane axis at ``axis_deg`` (image
-    directions: 0 = right, 90 = down), rolled by ``roll_deg`` about the sheet's normal."""
-
-    pixel: tuple[float, float]
-    distance: float
-    tilt_deg: float
-    axis_deg: float
-    roll_deg: float
 
 
 def place(target: Target, camera: Camera, p: Placement) -> Transform:

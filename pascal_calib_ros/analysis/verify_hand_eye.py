@@ -34,6 +34,7 @@ from ..calibrate.options import CalibrationOptions
 from ..calibrate.result import CalibrationResult
 from ..geometry.camera import Camera
 from ..geometry.transform import Transform
+from ..modes import HandEyeMode
 from ..targets import Target
 from .verify_views import FreshViews, VerifyError
 
@@ -42,7 +43,7 @@ from .verify_views import FreshViews, VerifyError
 class HandEyeReference:
     """The hand-eye result under test (HAND_EYE.yaml)."""
 
-    mode: str
+    mode: HandEyeMode
     X: Transform
     translation_std_mm: np.ndarray
     rotation_std_deg: np.ndarray

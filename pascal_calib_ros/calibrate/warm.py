@@ -50,7 +50,7 @@ class IntrinsicStart:
                 and all(a is b or (not a.ok and not b.ok) for a, b in zip(self.dets, dets, strict=False)))
 
 
-def calibrate_session(dets: list[Detection], target: Target, options: CalibrationOptions,
+def calibrate_warm(dets: list[Detection], target: Target, options: CalibrationOptions,
                       start: IntrinsicStart | None = None) -> tuple[CalibrationResult, IntrinsicStart | None]:
     """:func:`~.pipeline.calibrate`, warm from ``start`` where it applies (module docstring); and
     the start of the next call (None when this calibration was not plain)."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
 from ..calibrate.options import METHODS, CalibrationOptions
 from ..calibrate.problem import DISTORTION_MODELS, SHAPE_CHOICES
@@ -13,7 +14,7 @@ from ..calibrate.result import CalibrationError
 from ..report.text import format_summary, projection_line
 from ..workflows.detection import detect_files, detection_params
 from ..workflows.intrinsic import run_intrinsic
-from ..workflows.outputs import write_calibration_record, write_camera_file
+from ..workflows.outputs import ResultPaths
 from .common import (
     EXIT_CALIB,
     EXIT_INPUT,
@@ -24,7 +25,7 @@ from .common import (
     progress,
     session_defaults,
     target_or_none,
-    write_report_files,
+    write_result,
 )
 
 
@@ -105,11 +106,8 @@ def run(args: argparse.Namespace) -> int:
     print(format_summary(a))
     print(projection_line(a))
     print(f"time: detection {t_detect:.2f} s ({len(paths)} images), calibration {out.seconds:.2f} s")
-    yaml_path = write_camera_file(a.result, args.output, args.camera_name)
-    print(f"wrote {yaml_path}")
-    print(f"wrote {write_calibration_record(a, yaml_path, args.camera_name)}")
-    if args.report:
-        write_report_files(a, dets, args.report, paths)
+    write_result(out.write, ResultPaths(Path(args.output), report_dir=Path(args.report) if args.report else None),
+                 args.camera_name, dets, paths)
     for line in out.cross_validation_lines:  # a disagreement or a refusal is a WARNING, not a failure
         print(line)
     return EXIT_OK

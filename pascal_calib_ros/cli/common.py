@@ -7,13 +7,11 @@ import sys
 import time
 from pathlib import Path
 
-from ..analysis.assessment import Assessment
-from ..calibrate.handeye import HandEyeResult
 from ..detect.detection import Detection
 from ..io.images import expand_image_args, read_grey
 from ..io.session_folder import SessionFolder, SessionFolderError, is_session_folder
-from ..report.pages import write_report
 from ..targets import Target, TargetError, resolve_target
+from ..workflows.outputs import ReportRequest, ResultPaths, ResultWriter
 
 EXIT_OK, EXIT_CALIB, EXIT_INPUT = 0, 1, 2
 
@@ -46,14 +44,21 @@ def progress() -> bool:
     return sys.stderr.isatty()
 
 
-def write_report_files(a: Assessment, dets: list[Detection], out_dir: str, paths: list[Path],
-                       hand_eye: HandEyeResult | None = None) -> None:
-    """The report in ``out_dir`` (:mod:`..report`), the worst views drawn on their own images."""
-    by_name = {p.name: p for p in paths}
+def write_result(write: ResultWriter, paths: ResultPaths, camera_name: str, dets: list[Detection],
+                 images: list[Path]) -> None:
+    """One result's files through the outcome's ``write`` (the node writes the same set,
+    :mod:`..workflows.outputs`), each named; the report's worst views drawn on their own images."""
+    by_name = {p.name: p for p in images}
+    report = None if paths.report_dir is None else \
+        ReportRequest(dets, lambda n: read_grey(by_name[n]) if n in by_name else None)
     t0 = time.perf_counter()
-    files = write_report(a, dets, out_dir, images=lambda n: read_grey(by_name[n]) if n in by_name else None,
-                         hand_eye=hand_eye)
-    print(f"wrote {files.pdf}, {files.png} and {files.json} ({time.perf_counter() - t0:.1f} s)")
+    written = write(paths, camera_name, report)
+    for p in written.paths:
+        print(f"wrote {p}")
+    if paths.report_dir is not None:
+        print(f"({time.perf_counter() - t0:.1f} s)")
+    for w in written.warnings:
+        print(f"WARNING: {w}", file=sys.stderr)
 
 
 def distance_arg(text: str) -> float:

@@ -14,14 +14,14 @@ from ..calibrate.result import CalibrationError
 from ..detect.detection import Detection, DetectionParams
 from ..geometry.transform import Transform
 from ..io.bags import BagError
-from ..io.hand_eye_yaml import PosesYamlError, read_poses_yaml, write_hand_eye_yaml
+from ..io.hand_eye_yaml import PosesYamlError, read_poses_yaml
 from ..io.session_folder import SessionFolder
 from ..report.text import format_summary, hand_eye_summary
 from ..session.arm_bag import read_arm_bag
 from ..targets import Target
 from ..workflows.detection import detect_files, detect_images, detection_params
 from ..workflows.hand_eye import hand_eye_frames, run_hand_eye, static_transform_command
-from ..workflows.outputs import write_calibration_record, write_camera_file
+from ..workflows.outputs import HAND_EYE_FILE, ResultPaths
 from .common import (
     EXIT_CALIB,
     EXIT_INPUT,
@@ -31,7 +31,7 @@ from .common import (
     progress,
     session_defaults,
     target_or_none,
-    write_report_files,
+    write_result,
 )
 
 SessionInput = tuple[str, str, list[Detection], list[Transform | None], str, list[Path]]
@@ -171,14 +171,10 @@ def run(args: argparse.Namespace) -> int:
     print(format_summary(out.assessment))
     print(hand_eye_summary(out.result))
     print(f"time: calibration {out.seconds:.2f} s")
-    yaml_path = write_camera_file(out.result.calibration, args.output, args.camera_name)
-    print(f"wrote {yaml_path}")
-    print(f"wrote {write_calibration_record(out.assessment, yaml_path, args.camera_name)}")
-    parent, target_frame = hand_eye_frames(args.mode, frame_id, child_id)
-    he_out = Path(args.hand_eye_out) if args.hand_eye_out else Path(args.output).parent / "hand_eye.yaml"
-    write_hand_eye_yaml(he_out, out.record(parent, args.camera_frame, target_frame))
-    print(f"wrote {he_out}")
-    print("publish it with:\n  " + static_transform_command(out.result.hand_eye, parent, args.camera_frame))
-    if args.report:
-        write_report_files(out.assessment, dets, args.report, paths, hand_eye=out.result)
+    frames = hand_eye_frames(args.mode, frame_id, child_id, args.camera_frame)
+    he_out = Path(args.hand_eye_out) if args.hand_eye_out else Path(args.output).parent / HAND_EYE_FILE
+    write_result(lambda p, name, report: out.write(p, name, frames, report),
+                 ResultPaths(Path(args.output), he_out, Path(args.report) if args.report else None),
+                 args.camera_name, dets, paths)
+    print("publish it with:\n  " + static_transform_command(out.result.hand_eye, frames.parent, frames.camera))
     return EXIT_OK

@@ -11,64 +11,55 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
 
-import yaml
-
-from ..analysis.candidates import Placement
-from ..calibrate.handeye.options import HAND_EYE_MODES
 from ..calibrate.problem import DISTORTION_MODELS
 from ..detect.detection import Detection
+from ..geometry.placement import Placement
 from ..geometry.transform import Transform
 from ..io.hand_eye_yaml import PosesYamlError, read_poses_yaml
 from ..io.images import expand_image_args
+from ..io.next_yaml import NextYamlError, Suggestions, read_next_yaml, write_next_yaml
+from ..modes import HandEyeMode
 from ..targets import TargetError, resolve_target
 from ..workflows.detection import detect_files, detection_params
 from ..workflows.suggest import (
     SuggestError,
     SuggestOptions,
-    placement_of_doc,
     suggest_for_arm,
     suggest_for_person,
     summary,
-    write_next_yaml,
 )
 from .common import EXIT_INPUT, EXIT_OK, error, progress
 
 
-def read_previous(path: str) -> dict[str, Any]:
+def read_previous(path: str) -> Suggestions:
     """The previous call's NEXT.yaml (a :class:`SuggestError` when it cannot be read)."""
     try:
-        doc = yaml.safe_load(Path(path).read_text())
-        if not isinstance(doc, dict) or not isinstance(doc.get("suggestions", []), list):
-            raise ValueError("not a NEXT.yaml document")
-        for s in [*doc.get("avoided", []), *[s["placement"] for s in doc.get("suggestions", [])]]:
-            placement_of_doc(s)
-    except (OSError, ValueError, TypeError, KeyError, yaml.YAMLError) as e:
-        raise SuggestError(f"--previous {path}: cannot read it ({type(e).__name__}: {e}); give the NEXT.yaml "
-                           "the previous call wrote") from None
-    return doc
+        return read_next_yaml(path)
+    except NextYamlError as e:
+        raise SuggestError(f"--previous {e}") from None
 
 
-def avoided_placements(previous: dict[str, Any] | None, paths: list[Path], dets: list[Detection]
+def avoided_placements(previous: Suggestions | None, paths: list[Path], dets: list[Detection]
                        ) -> tuple[list[Placement], str]:
     """The placements to avoid (module docstring) and a line saying what was added ("" if nothing)."""
     if previous is None:
         return [], ""
-    avoid = [placement_of_doc(p) for p in previous.get("avoided", [])]
+    avoid = list(previous.avoided)
     newest = max(range(len(paths)), key=lambda k: (paths[k].stat().st_mtime, k))
-    if dets[newest].ok or not previous.get("suggestions"):
+    if dets[newest].ok or previous.first is None:
         return avoid, ""
-    p = previous["suggestions"][0]["placement"]
-    avoid.append(placement_of_doc(p))
+    p = previous.first.placement
+    avoid.append(p)
     return avoid, (f"the newest image {paths[newest].name} was refused ({dets[newest].reason}): the previous "
-                   f"suggestion 1 (centre at pixel ({p['pixel'][0]:.0f}, {p['pixel'][1]:.0f}), {p['distance_m']:.2f} "
-                   f"m, tilted {p['tilt_deg']:.0f} deg) and its neighbourhood are no longer suggested")
+                   f"suggestion 1 (centre at pixel ({p.pixel[0]:.0f}, {p.pixel[1]:.0f}), {p.distance:.2f} "
+                   f"m, tilted {p.tilt_deg:.0f} deg) and its neighbourhood are no longer suggested")
 
 
 def run(args: argparse.Namespace) -> int:
     """The CLI command (exit 0, or 2 with the reason on bad input)."""
-    opt = SuggestOptions(n=args.n, goal_sigma_px=args.goal_sigma, distortion=args.distortion, mode=args.mode or "",
+    opt = SuggestOptions(n=args.n, goal_sigma_px=args.goal_sigma, distortion=args.distortion,
+                         mode=HandEyeMode(args.mode) if args.mode else None,
                          reach=args.reach, max_turn=args.max_turn, goal_deg=args.goal_deg, goal_mm=args.goal_mm)
     why = opt.problem()
     if not why and bool(args.poses) != bool(args.mode):
@@ -92,9 +83,9 @@ def run(args: argparse.Namespace) -> int:
         dets = detect_files(paths, target, detection_params(opt.distortion), progress=progress())
         avoid, note = avoided_placements(previous, paths, dets)
         if args.poses:
-            doc = suggest_for_arm(dets, [poses.get(p.name) for p in paths], target, opt, frames, avoid)
+            found = suggest_for_arm(dets, [poses.get(p.name) for p in paths], target, opt, frames, avoid)
         else:
-            doc = suggest_for_person(dets, target, opt, avoid)
+            found = suggest_for_person(dets, target, opt, avoid)
     except (SuggestError, TargetError, PosesYamlError) as e:
         error(str(e))
         return EXIT_INPUT
@@ -103,8 +94,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"  rejected  {d.name}  {d.reason}")
     if note:
         print(note)
-    print(summary(doc))
-    print(f"wrote {write_next_yaml(args.output, doc)}")
+    print(summary(found))
+    print(f"wrote {write_next_yaml(args.output, found)}")
     return EXIT_OK
 
 
@@ -118,7 +109,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="done when the worst projection sigma over the whole image is at most this (px)")
     s.add_argument("-n", type=int, default=SuggestOptions.n, metavar="K", help="at most K suggestions, best first")
     s.add_argument("--poses", help="POSES.yaml: the tool pose in the base frame per image (arm sessions)")
-    s.add_argument("--mode", choices=HAND_EYE_MODES, help="with --poses: where the camera is")
+    s.add_argument("--mode", choices=[m.value for m in HandEyeMode], help="with --poses: where the camera is")
     s.add_argument("--reach", type=float, default=SuggestOptions.reach, metavar="M",
                    help="with --poses: suggested tool positions within this many metres of a visited one")
     s.add_argument("--max-turn", type=float, default=SuggestOptions.max_turn, metavar="DEG",

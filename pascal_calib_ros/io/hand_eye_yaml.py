@@ -41,6 +41,7 @@ import yaml
 
 from ..errors import PascalCalibError
 from ..geometry.transform import Transform, TransformError
+from ..modes import HandEyeMode
 
 
 class PosesYamlError(PascalCalibError):
@@ -123,7 +124,7 @@ class HandEyeRecord:
     (camera-frame points into the parent frame) with its standard deviations (mm, deg per parent
     axis), the target's pose ``target`` in ``target_frame``, the views used and the RMS (px)."""
 
-    mode: str
+    mode: HandEyeMode
     parent_frame: str
     child_frame: str
     X: Transform

@@ -34,7 +34,9 @@ from ..calibrate.result import CalibrationError, CalibrationResult
 from ..detect.detection import Detection
 from ..detect.target_detector import detect_target
 from ..errors import PascalCalibError
+from ..io.camera_yaml import CameraInfoData
 from ..io.image_msgs import ImageConversionError, compressed_to_grey, grey_to_image_fields, image_to_grey
+from ..modes import HandEyeMode
 from ..session.answer import Answer
 from ..session.collector import placement_points
 from ..session.live import LiveSession, Snapshot, max_motion_of
@@ -44,9 +46,9 @@ from ..workflows.intrinsic import run_intrinsic
 from ..workflows.outputs import (
     HAND_EYE_FILE,
     ReportRequest,
+    ResultPaths,
+    ResultWriter,
     calibration_file_path,
-    camera_info_data,
-    write_result_files,
 )
 from ..workflows.result_set import ResultSet
 from .commit import commit_camera_info
@@ -249,12 +251,11 @@ class CalibrationNode(CalibrationNodeBase):
         except CalibrationError as e:
             self.get_logger().warn(f"calibration failed: {e}")
             return Answer(False, f"calibration failed: {e}")
-        res = out.assessment.result
         try:
-            rs = self._write_outputs(out.assessment, views)
+            rs = self._write_outputs(views, out.write, hand_eye=False)
         except FileWriteError as e:
             return Answer(False, f"calibration not published: {e}")
-        self._publish_camera(res)
+        self._publish_camera(out.assessment.result, out.camera_info(str(self.p("camera_name"))))
         answer = out.answer(str(self.calibration_path())) + f" result={rs.id}"
         for line in out.cross_validation_lines:
             self.log(line, out.halves_agree is True)
@@ -276,7 +277,7 @@ class CalibrationNode(CalibrationNodeBase):
             return refuse(f"only {with_pose} of {len(snap.views)} view(s) have a robot pose; need 3 or more "
                           f"(robot poses received on {self.robot.resolved}: "
                           f"{self.robot.poses.received}{'; ' + self.robot.error if self.robot.error else ''})")
-        mode = str(self.p("hand_eye"))
+        mode = HandEyeMode(self.p("hand_eye"))
         he_opts = HandEyeOptions(mode, arm_accuracy_mm=float(self.p("arm_accuracy_mm")),
                                  arm_accuracy_length=float(self.p("arm_accuracy_length")))
         try:
@@ -287,19 +288,19 @@ class CalibrationNode(CalibrationNodeBase):
         if doubts:
             return refuse("the transform is not determined well enough: " + "; ".join(doubts)
                           + " (add views with larger rotations about different axes)")
-        cam_frame = str(self.p("camera_frame"))
-        parent, target_frame = hand_eye_frames(mode, str(self.p("robot_base_frame")), str(self.p("robot_tool_frame")))
+        frames = hand_eye_frames(mode, str(self.p("robot_base_frame")), str(self.p("robot_tool_frame")),
+                                 str(self.p("camera_frame")))
         try:
-            rs = self._write_outputs(out.assessment, snap.views, out, out.record(parent, cam_frame, target_frame))
+            rs = self._write_outputs(snap.views, lambda paths, name, report: out.write(paths, name, frames, report),
+                                     hand_eye=True)
         except FileWriteError as e:
             return refuse(f"nothing published: {e}")
         path = self.calibration_path()
-        self.hand_eye_line, summary = out.answer(parent, cam_frame, len(snap.views), str(path.parent / HAND_EYE_FILE),
-                                                 str(path))
+        self.hand_eye_line, summary = out.answer(frames, len(snap.views), str(path.parent / HAND_EYE_FILE), str(path))
         summary += f" result={rs.id}"
-        self.hand_eye_result = (out.result, parent, cam_frame)
-        self._publish_camera(out.assessment.result)
-        tf = transform_msg(out.result.hand_eye, parent, cam_frame, self.get_clock().now().to_msg())
+        self.hand_eye_result = (out.result, frames.parent, frames.camera)
+        self._publish_camera(out.assessment.result, out.camera_info(str(self.p("camera_name"))))
+        tf = transform_msg(out.result.hand_eye, frames.parent, frames.camera, self.get_clock().now().to_msg())
         self.pub_hand_eye.publish(tf)
         if not self.tf_static.send(tf):
             self.get_logger().warn(self.tf_static.unavailable, once=True)
@@ -307,21 +308,21 @@ class CalibrationNode(CalibrationNodeBase):
         self.publish_status()
         return Answer(True, summary)
 
-    def _publish_camera(self, res: CalibrationResult) -> None:
-        msg = camera_info_msg(camera_info_data(res, str(self.p("camera_name"))), self._header())
+    def _publish_camera(self, res: CalibrationResult, info: CameraInfoData) -> None:
+        msg = camera_info_msg(info, self._header())
         self.result, self.result_msg = res, msg
         self.pub_info.publish(msg)
 
-    def _write_outputs(self, a: Any, views: list[Detection], hand_eye: Any = None, record: Any = None) -> ResultSet:
-        """One result set (:meth:`.node_session.NodeSession.write_result`): the camera YAML, its record,
-        ``hand_eye.yaml`` and, with ``output_dir``, ``calibration.json`` and the report."""
+    def _write_outputs(self, views: list[Detection], write: ResultWriter, *, hand_eye: bool) -> ResultSet:
+        """One result set (:meth:`.node_session.NodeSession.write_result`) written by the outcome's
+        ``write``: the camera YAML, its record, ``hand_eye.yaml`` and, with ``output_dir``, the report."""
         name = str(self.p("camera_name"))
-        report = (ReportRequest(views, self.recording.images(), hand_eye.result if hand_eye is not None else None)
-                  if self.p("output_dir") else None)
+        report = ReportRequest(views, self.recording.images()) if self.p("output_dir") else None
         warnings: list[str] = []
 
         def fill(folder: Path) -> None:
-            warnings.extend(write_result_files(folder, a, name, record, report))
+            paths = ResultPaths.in_folder(folder, name, hand_eye=hand_eye, report=report is not None)
+            warnings.extend(write(paths, name, report).warnings)
         rs = self.recording.write_result(fill, len(views))
         for w in warnings:
             self.get_logger().warn(w)

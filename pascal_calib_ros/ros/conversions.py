@@ -5,13 +5,14 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from geometry_msgs.msg import TransformStamped
+from geometry_msgs.msg import Pose, PoseArray, TransformStamped
 from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Header
 
 from ..geometry.transform import Transform
 from ..io.camera_yaml import CameraInfoData
 from ..io.image_msgs import grey_to_image_fields
+from ..io.next_yaml import Suggestions
 
 
 def camera_info_msg(info: CameraInfoData, header: Any) -> CameraInfo:
@@ -34,6 +35,20 @@ def transform_msg(X: Transform, parent: str, child: str, stamp: Any) -> Transfor
     tr.x, tr.y, tr.z = (float(v) for v in X.translation)
     r.x, r.y, r.z, r.w = (float(v) for v in X.quat)
     return tf
+
+
+def pose_msg(T: Transform) -> Pose:
+    """geometry_msgs/Pose of T (position = translation, orientation = its unit quaternion)."""
+    p = Pose()
+    p.position.x, p.position.y, p.position.z = (float(v) for v in T.translation)
+    p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w = (float(v) for v in T.quat)
+    return p
+
+
+def tool_poses_msg(s: Suggestions, header: Any) -> PoseArray:
+    """geometry_msgs/PoseArray of the suggested tool poses, best first (empty for a person's
+    suggestions); ``header.frame_id`` must be the robot's base frame."""
+    return PoseArray(header=header, poses=[pose_msg(x.tool.pose) for x in s.suggestions if x.tool is not None])
 
 
 def image_msg(img: np.ndarray, header: Any) -> Image:

@@ -12,66 +12,63 @@ import time
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from geometry_msgs.msg import Pose, PoseArray, PoseStamped
+from geometry_msgs.msg import PoseArray, PoseStamped
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from std_srvs.srv import Trigger
 
-from ..analysis.candidates import Placement
 from ..calibrate.options import CalibrationOptions
 from ..detect.detection import Detection
 from ..errors import PascalCalibError
 from ..geometry.camera import Camera
+from ..geometry.placement import Placement
 from ..io.calibration_files import read_calibration_file
+from ..io.next_yaml import Suggestions
+from ..modes import HandEyeMode
 from ..session.answer import Answer
 from ..session.arm_session import MOVING, NO_POSE
 from ..session.guide_overlay import draw_guide
 from ..session.guided_live import GuidedLive, GuideView
-from ..workflows.suggest import SuggestOptions, WarmArmSuggestions, placement_of_doc, suggest_for_person
+from ..workflows.suggest import SuggestOptions, WarmArmSuggestions, suggest_for_person
+from .conversions import tool_poses_msg
 from .guard import guarded_service
 
 if TYPE_CHECKING:
     from .calibration_node import CalibrationNode
 
 
-def _pose_msg(doc: dict[str, list[float]]) -> Pose:
-    """geometry_msgs/Pose of NEXT.yaml's ``{translation, rotation [qx, qy, qz, qw]}``."""
-    p = Pose()
-    p.position.x, p.position.y, p.position.z = (float(v) for v in doc["translation"])
-    p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w = (float(v) for v in doc["rotation"])
-    return p
-
-
 def _vec(v: list[float], digits: int = 4) -> str:
     return "[" + ", ".join(f"{x:.{digits}f}" for x in v) + "]"
 
 
-def arm_answer(doc: dict[str, Any], topic: str) -> str:
+def arm_answer(s: Suggestions, topic: str) -> str:
     """``~/suggest``'s answer for an arm: the best tool pose and the figures now and predicted."""
-    now = (f"now sigma {doc['projection_sigma_px']:.4f} px (goal {doc['goal_sigma_px']:g}), hand-eye "
-           f"{doc['hand_eye_sigma_deg']:.5f} deg {doc['hand_eye_sigma_mm']:.4f} mm (goals "
-           f"{doc['goal_hand_eye_sigma_deg']:g} deg {doc['goal_hand_eye_sigma_mm']:g} mm) from {doc['views_used']} "
-           "views")
-    head = "done: the views reach the goals; call ~/calibrate" if doc["done"] else "next"
-    if not doc["suggestions"]:
+    arm = s.arm
+    assert arm is not None, "an arm's suggestions"
+    now = (f"now sigma {s.projection_sigma_px:.4f} px (goal {s.goal_sigma_px:g}), hand-eye "
+           f"{arm.sigma_deg:.5f} deg {arm.sigma_mm:.4f} mm (goals {arm.goal_deg:g} deg {arm.goal_mm:g} mm) from "
+           f"{s.views_used} views")
+    head = "done: the views reach the goals; call ~/calibrate" if s.done else "next"
+    best = s.first
+    if best is None or best.tool is None:
         return f"{head}; {now}"
-    s = doc["suggestions"][0]
-    return (f"{head}: tool t={_vec(s['tool']['translation'])} m q={_vec(s['tool']['rotation'], 6)} in "
-            f"{doc['frame_id']}: predicted sigma {s['predicted_sigma_px']:.4f} px, hand-eye "
-            f"{s['predicted_hand_eye_sigma_deg']:.5f} deg {s['predicted_hand_eye_sigma_mm']:.4f} mm; {now}; "
-            f"{len(doc['suggestions'])} ranked on {topic}")
+    tool = best.tool
+    return (f"{head}: tool t={_vec(list(tool.pose.translation))} m q={_vec(list(tool.pose.quat), 6)} in "
+            f"{arm.frame_id}: predicted sigma {best.predicted_sigma_px:.4f} px, hand-eye "
+            f"{tool.predicted_sigma_deg:.5f} deg {tool.predicted_sigma_mm:.4f} mm; {now}; "
+            f"{len(s.suggestions)} ranked on {topic}")
 
 
-def person_answer(doc: dict[str, Any]) -> str:
+def person_answer(s: Suggestions) -> str:
     """``~/suggest``'s answer without an arm: the best camera_T_target and the figures."""
-    now = (f"now sigma {doc['projection_sigma_px']:.4f} px (goal {doc['goal_sigma_px']:g}) from "
-           f"{doc['views_used']} views")
-    head = "done: the views reach the goal; call ~/calibrate" if doc["done"] else "next"
-    s = doc["suggestions"][0]
-    p = s["placement"]
-    return (f"{head}: camera_T_target t={_vec(s['camera_T_target']['translation'])} m "
-            f"q={_vec(s['camera_T_target']['rotation'], 6)} (centre at ({p['pixel'][0]:.0f}, {p['pixel'][1]:.0f}) "
-            f"px, {p['distance_m']:.2f} m, tilt {p['tilt_deg']:.0f} deg): predicted sigma "
-            f"{s['predicted_sigma_px']:.4f} px; {now}")
+    now = f"now sigma {s.projection_sigma_px:.4f} px (goal {s.goal_sigma_px:g}) from {s.views_used} views"
+    head = "done: the views reach the goal; call ~/calibrate" if s.done else "next"
+    best = s.first
+    if best is None:
+        return f"{head}; {now}"
+    p, T = best.placement, best.camera_T_target
+    return (f"{head}: camera_T_target t={_vec(list(T.translation))} m q={_vec(list(T.quat), 6)} (centre at "
+            f"({p.pixel[0]:.0f}, {p.pixel[1]:.0f}) px, {p.distance:.2f} m, tilt {p.tilt_deg:.0f} deg): predicted "
+            f"sigma {best.predicted_sigma_px:.4f} px; {now}")
 
 
 def previous_camera(node: CalibrationNode) -> Camera | None:
@@ -225,7 +222,8 @@ class NodeGuide:
     def options(self) -> SuggestOptions:
         p = self.node.p
         return SuggestOptions(n=int(p("suggest_count")), goal_sigma_px=float(p("goal_sigma_px")),
-                              distortion=str(p("distortion_model")), mode=str(p("hand_eye")),
+                              distortion=str(p("distortion_model")),
+                              mode=HandEyeMode(p("hand_eye")) if p("hand_eye") else None,
                               reach=float(p("suggest_reach")), max_turn=float(p("suggest_max_turn")),
                               goal_deg=float(p("goal_hand_eye_deg")), goal_mm=float(p("goal_hand_eye_mm")))
 
@@ -244,21 +242,20 @@ class NodeGuide:
                                 f"neighbourhood is not suggested again ({len(self.avoid)} avoided)")
         return f"; {self.suggest_refused}"
 
-    def _offer(self, doc: dict[str, Any], n_views: int) -> dict[str, Any]:
-        """Remember the first suggestion of ``doc`` (what a refused capture is held against)."""
-        sugg = doc["suggestions"]
-        self._offered = placement_of_doc(sugg[0]["placement"]) if sugg and not doc["done"] else None
+    def _offer(self, s: Suggestions, n_views: int) -> Suggestions:
+        """Remember the first suggestion of ``s`` (what a refused capture is held against)."""
+        self._offered = s.first.placement if s.first is not None and not s.done else None
         self._offered_at = (self.node.session.captures.refused, n_views)
-        return doc
+        return s
 
     def suggest(self) -> str:
         """The answer of ``~/suggest``; a :class:`~..errors.PascalCalibError` says why there is none."""
         node, opt = self.node, self.options()
         snap = node.session.snapshot()
         note = self._avoid_refused(len(snap.views))
-        if not opt.mode:
-            doc = self._offer(suggest_for_person(snap.views, node.target, opt, self.avoid), len(snap.views))
-            return person_answer(doc) + note
+        if opt.mode is None:
+            found = self._offer(suggest_for_person(snap.views, node.target, opt, self.avoid), len(snap.views))
+            return person_answer(found) + note
         if node.robot is None:
             raise PascalCalibError("hand_eye is set but there are no robot poses: set robot_pose_topic")
         if sum(p is not None for p in snap.robot_poses) == 0:
@@ -266,16 +263,16 @@ class NodeGuide:
                                    f"on {node.robot.resolved}: {node.robot.poses.received}); capture views at "
                                    "three or more arm poses first")
         base, tool = str(node.p("robot_base_frame")), str(node.p("robot_tool_frame"))
-        doc = self._offer(self.arm.suggest(snap.views, snap.robot_poses, node.target, opt, (base, tool), self.avoid),
-                          len(snap.views))
-        if not doc["suggestions"] and not doc["done"]:
+        found = self._offer(self.arm.suggest(snap.views, snap.robot_poses, node.target, opt, (base, tool),
+                                             self.avoid), len(snap.views))
+        if not found.suggestions and not found.done:
             raise PascalCalibError(f"no candidate view inside the trust region (suggest_reach {opt.reach:g} m, "
                                    f"suggest_max_turn {opt.max_turn:g} deg around the visited tool poses); widen it"
-                                   f" or capture views at more varied poses; {arm_answer(doc, '')}")
-        if doc["suggestions"]:
+                                   f" or capture views at more varied poses; {arm_answer(found, '')}")
+        if found.suggestions:
             header = node._header()
             header.frame_id = base
-            arr = PoseArray(header=header, poses=[_pose_msg(s["tool"]) for s in doc["suggestions"]])
+            arr = tool_poses_msg(found, header)
             self.pub_poses.publish(arr)
             self.pub_pose.publish(PoseStamped(header=header, pose=arr.poses[0]))
-        return arm_answer(doc, node.resolve_topic_name("~/suggested_tool_poses")) + note
+        return arm_answer(found, node.resolve_topic_name("~/suggested_tool_poses")) + note

@@ -9,7 +9,7 @@ from ..analysis.verify import Reference
 from ..errors import PascalCalibError
 from ..io.calibration_files import read_calibration_file
 from ..session.answer import Answer
-from ..workflows.verify import hand_eye_reference_of_result, reference_of_file, reference_of_result, verify_views
+from ..workflows.verify import hand_eye_reference_of_result, reference_of_file, reference_of_result, verify_detections
 
 if TYPE_CHECKING:
     from .calibration_node import CalibrationNode
@@ -29,7 +29,7 @@ def run_verification(node: CalibrationNode) -> Answer:
         he_ref = hand_eye_reference_of_result(he, parent, cam_frame, float(node.p("arm_accuracy_mm")),
                                               float(node.p("arm_accuracy_length")))
     try:
-        _, line = verify_views(snap.views, node.target, reference, robot, he_ref)
+        _, line = verify_detections(snap.views, node.target, reference, robot, he_ref)
     except PascalCalibError as e:
         return Answer(False, f"the views cannot test the calibration: {e}")
     except Exception as e:  # never let a numerical failure take the node down

@@ -52,7 +52,7 @@ PARAMS = (
           "`camera_calibration`'s stereo files)",),
     Param('output_dir', '',
           'where results go: each successful `~/calibrate` writes one result set, `results/<id>/` (the YAML, '
-          '`<camera_name>.calibration.json`, `hand_eye.yaml`; with `output_dir` set also `calibration.json` and the '
+          '`<camera_name>.calibration.json`, `hand_eye.yaml`; with `output_dir` set also the '
           'report, see Calibration report), published at once by pointing `current` at it; `<camera_name>.yaml` '
           'and `hand_eye.yaml` in the folder are links through `current` (a kill never leaves a mixed set); '
           'stereo: `left/<shot>.png` and `right/<shot>.png` (the input of `pascal-calib stereo`), `left.yaml`, '

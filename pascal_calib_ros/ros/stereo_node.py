@@ -54,7 +54,7 @@ from ..workflows.stereo import StereoOutcome
 from ..workflows.stereo_session import (
     StereoSessionOptions,
     answer_line,
-    calibrate_session,
+    calibrate_stereo_session,
     stereo_output_dir,
     write_session_report,
 )
@@ -254,7 +254,7 @@ class StereoCalibrationNode(CalibrationNodeBase):
             return self._refuse(self.session.refusal(snap, self.notes()))
         dets = snap.detections()
         try:
-            outcome = calibrate_session(dets, self.target, self.options(snap.min_views))
+            outcome = calibrate_stereo_session(dets, self.target, self.options(snap.min_views))
         except (CalibrationError, PascalCalibError) as e:
             return self._refuse(f"{e} (nothing published; the previous result stays)")
         out_dir = stereo_output_dir(str(self.p("camera_name")), str(self.p("output_dir")))

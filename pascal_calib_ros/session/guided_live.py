@@ -39,7 +39,7 @@ from threadpoolctl import threadpool_limits
 from ..calibrate.handeye.view_poses import camera_pose
 from ..calibrate.options import MIN_VIEWS, CalibrationOptions
 from ..calibrate.result import CalibrationError
-from ..calibrate.warm import IntrinsicStart, calibrate_session
+from ..calibrate.warm import IntrinsicStart, calibrate_warm
 from ..detect.detection import Detection
 from ..geometry.camera import Camera
 from ..geometry.transform import Transform
@@ -245,7 +245,7 @@ class GuidedLive:
                 with threadpool_limits(1, "blas"):  # small dense products: one thread is faster on a shared machine
                     # warm from the last recalibration when the views only grew (calibrate/warm.py: the
                     # cold result to the solver's tolerance), cold otherwise
-                    result, start = calibrate_session(ok, self.target, self.options, start)
+                    result, start = calibrate_warm(ok, self.target, self.options, start)
                 refinement = result.refinement
                 if refinement is None or refinement.covariance is None:
                     error = "the calibration has no covariance to predict from; showing a fixed view"

@@ -27,6 +27,7 @@ import numpy as np
 
 from ..geometry.camera import Camera
 from ..geometry.transform import Transform
+from ..modes import HandEyeMode
 from ..targets import Target
 from .render import Pose, SensorModel, random_poses, render_view
 from .session import SessionSpec
@@ -47,7 +48,7 @@ DEFAULT_TARGET = {
 
 @dataclass(frozen=True)
 class ArmSpec:
-    mode: str = "eye_in_hand"
+    mode: HandEyeMode = HandEyeMode.EYE_IN_HAND
     views: int = 20
     width: int = 800
     height: int = 600
@@ -72,6 +73,9 @@ class ArmSpec:
     def camera(self) -> Camera:
         return SessionSpec(width=self.width, height=self.height, focal=self.focal, k1=self.k1, lens=self.lens,
                            dist=self.dist).camera()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "mode", HandEyeMode(self.mode))  # text given for the mode becomes the enum
 
 
 @dataclass
@@ -106,7 +110,7 @@ def arm_poses(spec: ArmSpec, pose_target: Target, hand_eye: Transform | None = N
     true, meas = [], []
     for p in poses:
         C = Transform.from_rt(p.R, p.t)
-        G = Y @ C.inverse() @ X.inverse() if spec.mode == "eye_in_hand" else X @ C @ Y.inverse()
+        G = Y @ C.inverse() @ X.inverse() if spec.mode == HandEyeMode.EYE_IN_HAND else X @ C @ Y.inverse()
         true.append(G)
         field_err = spec.systematic_mm / 1000 * np.sin(kvec @ G.translation + phase)
         g = Transform(G.rotation, G.translation * (1 + spec.scale_error) + field_err)

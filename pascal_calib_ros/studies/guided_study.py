@@ -35,7 +35,7 @@ from ..analysis.guidance import Linearisation, ViewPredictor
 from ..calibrate.options import CalibrationOptions
 from ..calibrate.pipeline import calibrate
 from ..calibrate.result import CalibrationError
-from ..calibrate.warm import IntrinsicStart, calibrate_session
+from ..calibrate.warm import IntrinsicStart, calibrate_warm
 from ..detect.detection import DetectionParams
 from ..detect.target_detector import detect_target
 from ..sim.render import SensorModel, render_view
@@ -89,7 +89,7 @@ def run_session(case: Case, strategy: str, seed: int, n_max: int, error: PersonE
     """One session: views until ``n_max`` are usable (at most 3 n_max attempts); the calibration,
     its true errors and its real whole-image sigma at every N of :data:`EVAL_N` (every N for the
     guide, which recalibrates after each view to choose the next; warm from the last calibration,
-    as the node does, with :data:`GUIDE_WARM`: :func:`..calibrate.warm.calibrate_session`)."""
+    as the node does, with :data:`GUIDE_WARM`: :func:`..calibrate.warm.calibrate_warm`)."""
     target = resolve_target(case.target)
     cam = case.spec.camera()
     state = SessionState(target, cam, rng=np.random.default_rng([seed, STRATEGIES.index(strategy)]))
@@ -116,7 +116,7 @@ def run_session(case: Case, strategy: str, seed: int, n_max: int, error: PersonE
             continue
         try:
             if strategy == "guided" and GUIDE_WARM:
-                res, start = calibrate_session(state.dets, target, opts, start)
+                res, start = calibrate_warm(state.dets, target, opts, start)
             else:
                 res = calibrate(state.dets, target, opts)
         except CalibrationError as e:  # counts as an unusable calibration: infinite error

@@ -35,6 +35,7 @@ from ..calibrate.handeye import calibrate_hand_eye
 from ..calibrate.result import CalibrationError
 from ..detect.target_detector import detect_target
 from ..geometry.transform import Transform
+from ..modes import HandEyeMode
 from ..sim.arm import ArmSpec, arm_poses, hand_eye_errors, render_arm_images
 from ..targets import resolve_target
 
@@ -101,7 +102,7 @@ def _opencv_rows(session: Any, mode: str, out: Path, opencv4_python: str) -> lis
 
 def run_handeye_study(out: Path, views: int = 20, seed: int = 1, opencv4_python: str = "",
                       targets: tuple[str, ...] = ("ring_a4", "checkerboard_a4"),
-                      modes: tuple[str, ...] = ("eye_in_hand", "eye_to_hand"),
+                      modes: tuple[HandEyeMode, ...] = tuple(HandEyeMode),
                       systematic_mm: float = 0.25) -> list[dict[str, Any]]:
     """Run the study; ``systematic_mm`` is the arm's systematic field amplitude (0: random arm noise only)."""
     out.mkdir(parents=True, exist_ok=True)

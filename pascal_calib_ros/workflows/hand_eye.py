@@ -14,18 +14,32 @@ from ..calibrate.handeye import HandEyeOptions, HandEyeResult, calibrate_hand_ey
 from ..calibrate.options import CalibrationOptions
 from ..detect.detection import Detection
 from ..geometry.transform import Transform
+from ..io.camera_yaml import CameraInfoData
 from ..io.hand_eye_yaml import HandEyeRecord
+from ..modes import HandEyeMode
 from ..targets import Target
 from .intrinsic import camera_answer
+from .outputs import ReportRequest, ResultPaths, WrittenFiles, camera_info_data, write_result_files
 
 MAX_HAND_EYE_STD_MM = 5.0  # a hand-eye transform less certain than this is not published
 MAX_HAND_EYE_STD_DEG = 0.5
 
 
-def hand_eye_frames(mode: str, base_frame: str, tool_frame: str) -> tuple[str, str]:
-    """(parent frame of the camera, frame the target is fixed in): eye in hand the tool and the
-    base; eye to hand the base and the tool."""
-    return (tool_frame, base_frame) if mode == "eye_in_hand" else (base_frame, tool_frame)
+@dataclass(frozen=True)
+class HandEyeFrames:
+    """The frames of a hand-eye result: X = parent_T_camera (``parent``: the tool eye in hand, the
+    base eye to hand); the target is fixed in ``target`` (the other of the two)."""
+
+    parent: str
+    camera: str
+    target: str
+
+
+def hand_eye_frames(mode: HandEyeMode, base_frame: str, tool_frame: str, camera_frame: str) -> HandEyeFrames:
+    """The frames of ``mode``'s result (:class:`HandEyeFrames`)."""
+    if mode == HandEyeMode.EYE_IN_HAND:
+        return HandEyeFrames(tool_frame, camera_frame, base_frame)
+    return HandEyeFrames(base_frame, camera_frame, tool_frame)
 
 
 @dataclass
@@ -36,20 +50,28 @@ class HandEyeOutcome:
     assessment: Assessment
     seconds: float
 
-    def record(self, parent_frame: str, camera_frame: str, target_frame: str) -> HandEyeRecord:
+    def record(self, frames: HandEyeFrames) -> HandEyeRecord:
         """What HAND_EYE.yaml holds."""
         he = self.result
-        return HandEyeRecord(mode=he.mode, parent_frame=parent_frame, child_frame=camera_frame, X=he.hand_eye,
+        return HandEyeRecord(mode=he.mode, parent_frame=frames.parent, child_frame=frames.camera, X=he.hand_eye,
                              translation_std_mm=_three(he.translation_std_mm),
-                             rotation_std_deg=_three(he.rotation_std_deg), target_frame=target_frame,
+                             rotation_std_deg=_three(he.rotation_std_deg), target_frame=frames.target,
                              target=he.target, views_used=int(he.views_used), rms_px=float(he.rms_px),
                              translation_std_intrinsics_mm=_three(he.intrinsics_share_mm),
                              rotation_std_intrinsics_deg=_three(he.intrinsics_share_deg))
 
-    def answer(self, parent: str, camera_frame: str, n_views: int, hand_eye_yaml: str, camera_yaml: str
-               ) -> tuple[str, str]:
+    def camera_info(self, camera_name: str) -> CameraInfoData:
+        """The CameraInfo data of the joint estimate's camera (:func:`~.outputs.camera_info_data`)."""
+        return camera_info_data(self.assessment.result, camera_name)
+
+    def write(self, paths: ResultPaths, camera_name: str, frames: HandEyeFrames,
+              report: ReportRequest | None = None) -> WrittenFiles:
+        """The result's files, ``hand_eye.yaml`` included (:func:`~.outputs.write_result_files`)."""
+        return write_result_files(paths, self.assessment, camera_name, self.record(frames), report, self.result)
+
+    def answer(self, frames: HandEyeFrames, n_views: int, hand_eye_yaml: str, camera_yaml: str) -> tuple[str, str]:
         """(the transform's line, the node's whole ``~/calibrate`` answer: that line and the camera's)."""
-        line = hand_eye_line(self.result, parent, camera_frame, n_views, hand_eye_yaml)
+        line = hand_eye_line(self.result, frames.parent, frames.camera, n_views, hand_eye_yaml)
         return line, f"{line}; camera: {camera_answer(self.assessment, self.seconds, camera_yaml, self.warnings)}"
 
     @property

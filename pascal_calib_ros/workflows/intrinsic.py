@@ -12,8 +12,10 @@ from ..calibrate.options import CalibrationOptions
 from ..calibrate.pipeline import calibrate
 from ..calibrate.result import CalibrationError
 from ..detect.detection import Detection
+from ..io.camera_yaml import CameraInfoData
 from ..report.text import projection_line, summary_line
 from ..targets import Target
+from .outputs import ReportRequest, ResultPaths, WrittenFiles, camera_info_data, write_result_files
 
 
 @dataclass
@@ -30,6 +32,14 @@ class IntrinsicOutcome:
     def halves_agree(self) -> bool | None:
         """None without a cross-validation."""
         return None if self.cross_validation is None else self.cross_validation.agree
+
+    def camera_info(self, camera_name: str) -> CameraInfoData:
+        """The CameraInfo data of the calibration (:func:`~.outputs.camera_info_data`)."""
+        return camera_info_data(self.assessment.result, camera_name)
+
+    def write(self, paths: ResultPaths, camera_name: str, report: ReportRequest | None = None) -> WrittenFiles:
+        """The result's files (:func:`~.outputs.write_result_files`)."""
+        return write_result_files(paths, self.assessment, camera_name, report=report)
 
     def answer(self, yaml_path: str) -> str:
         """The node's ``~/calibrate`` answer: :func:`camera_answer` and the cross-validation's lines."""

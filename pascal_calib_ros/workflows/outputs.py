@@ -1,11 +1,15 @@
 """What a calibration leaves behind, the same from the CLI and the node: the CameraInfo data (K, D,
-R = I, P the rectified projection), the camera YAML, ``calibration.json`` and the report."""
+R = I, P the rectified projection) and one result's files (:func:`write_result_files`): the camera
+YAML, its calibration record ``CAM.calibration.json`` (:mod:`..io.calibration_json`, versioned),
+with a hand-eye result ``hand_eye.yaml``, on request the report. Where each goes is a
+:class:`ResultPaths`: the node's result set (:mod:`.result_set`) puts them in one folder, the CLI
+where its options say. The outcomes (:class:`~.intrinsic.IntrinsicOutcome`,
+:class:`~.hand_eye.HandEyeOutcome`) write through here."""
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -18,8 +22,7 @@ from ..geometry.camera import rectified_projection
 from ..io.calibration_json import sidecar_path, write_calibration_json
 from ..io.camera_yaml import CameraInfoData, write_camera_yaml
 from ..io.hand_eye_yaml import HandEyeRecord, write_hand_eye_yaml
-from ..report.pages import ReportFiles, write_report
-from ..report.text import summary_line
+from ..report.pages import write_report
 from .calibration_record import record_of_calibration
 
 HAND_EYE_FILE = "hand_eye.yaml"
@@ -54,52 +57,67 @@ def write_camera_file(res: CalibrationResult, path: str | Path, camera_name: str
     return write_camera_yaml(path, camera_info_data(res, camera_name))
 
 
-def calibration_json(res: CalibrationResult) -> dict[str, Any]:
-    """``calibration.json``: the summary line, K, D, their sigmas, RMS, degeneracy, warnings, the
-    target shape and every view's fate."""
-    return {"summary": summary_line(res), "K": res.K.tolist(), "D": res.D.tolist(), "std": res.std,
-            "rms": res.rms, "degeneracy_ratio": res.degeneracy_ratio, "warnings": res.warnings,
-            "target_shape": res.shape, "target_shape_std": res.shape_std,
-            "views": [{"name": v.name, "used": v.used, "reason": v.reason, "rms": v.rms} for v in res.views]}
-
-
-def write_session_files(a: Assessment, dets: list[Detection], out_dir: str | Path, images: ImageSource | None,
-                        hand_eye: Any = None) -> ReportFiles:
-    """``calibration.json`` and the report (``report.pdf``, ``.png``, ``.json``) in ``out_dir``."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "calibration.json").write_text(json.dumps(calibration_json(a.result), indent=1, default=float))
-    return write_report(a, dets, out, images=images, hand_eye=hand_eye)
-
-
 def write_calibration_record(a: Assessment, camera_yaml: str | Path, camera_name: str) -> Path:
     """``CAM.calibration.json`` beside the camera YAML (:mod:`..io.calibration_json`): the covariance
     ``pascal-calib verify`` tests against and the observed field ``export --region`` refits over."""
     return write_calibration_json(sidecar_path(camera_yaml), record_of_calibration(a, camera_name))
 
 
-def write_result_files(folder: Path, a: Assessment, camera_name: str, hand_eye: HandEyeRecord | None = None,
-                       report: ReportRequest | None = None) -> list[str]:
-    """One result's files in ``folder`` (a result set's staging folder, :mod:`.result_set`): the camera
-    YAML, its calibration record, ``hand_eye.yaml`` and, on request, ``calibration.json`` and the
-    report. Returns the warnings (a report that failed: it must never cost the calibration)."""
-    path = write_camera_file(a.result, folder / f"{camera_name}.yaml", camera_name)
-    write_calibration_record(a, path, camera_name)
-    if hand_eye is not None:
-        write_hand_eye_yaml(folder / HAND_EYE_FILE, hand_eye)
-    if report is None:
-        return []
-    try:
-        write_session_files(a, report.views, folder, report.images, hand_eye=report.hand_eye)
-    except Exception as e:  # a report must never cost the calibration
-        return [f"report not written: {type(e).__name__}: {e}"]
-    return []
+@dataclass(frozen=True)
+class ResultPaths:
+    """Where one result's files go: the camera YAML (its record beside it), ``hand_eye.yaml`` (for a
+    hand-eye result), the report's folder (None: no report)."""
+
+    camera_yaml: Path
+    hand_eye_yaml: Path | None = None
+    report_dir: Path | None = None
+
+    @classmethod
+    def in_folder(cls, folder: Path, camera_name: str, *, hand_eye: bool = False, report: bool = False
+                  ) -> ResultPaths:
+        """Every file in ``folder`` under its usual name (a node's result set)."""
+        return cls(folder / f"{camera_name}.yaml", folder / HAND_EYE_FILE if hand_eye else None,
+                   folder if report else None)
 
 
 @dataclass(frozen=True)
 class ReportRequest:
-    """What the report of a result needs: the views, their images, the hand-eye result if any."""
+    """What the report of a result needs besides the result: the views and their images."""
 
     views: list[Detection]
     images: ImageSource | None
-    hand_eye: Any = None
+
+
+@dataclass
+class WrittenFiles:
+    """The files one result left, in the order written, and the warnings (a report that failed)."""
+
+    paths: list[Path] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+
+def write_result_files(paths: ResultPaths, a: Assessment, camera_name: str, hand_eye: HandEyeRecord | None = None,
+                       report: ReportRequest | None = None, hand_eye_result: Any = None) -> WrittenFiles:
+    """One result's files (module docstring): the camera YAML and its record, ``hand_eye.yaml`` when
+    ``hand_eye`` is given (``paths.hand_eye_yaml`` must be set), the report when ``paths.report_dir``
+    and ``report`` are (``hand_eye_result`` adds its page). A report that fails is a warning: it
+    must never cost the calibration."""
+    out = WrittenFiles([write_camera_file(a.result, paths.camera_yaml, camera_name)])
+    out.paths.append(write_calibration_record(a, out.paths[0], camera_name))
+    if hand_eye is not None:
+        if paths.hand_eye_yaml is None:
+            raise ValueError("a hand-eye result needs paths.hand_eye_yaml")
+        write_hand_eye_yaml(paths.hand_eye_yaml, hand_eye)
+        out.paths.append(paths.hand_eye_yaml)
+    if report is None or paths.report_dir is None:
+        return out
+    try:
+        files = write_report(a, report.views, paths.report_dir, images=report.images, hand_eye=hand_eye_result)
+        out.paths += [files.pdf, files.png, files.json]
+    except Exception as e:  # a report must never cost the calibration
+        out.warnings.append(f"report not written: {type(e).__name__}: {e}")
+    return out
+
+
+# an outcome's ``write(paths, camera_name, report)``: how the node and the CLI hand it their paths
+ResultWriter = Callable[[ResultPaths, str, "ReportRequest | None"], WrittenFiles]

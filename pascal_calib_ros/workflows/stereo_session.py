@@ -1,6 +1,6 @@
 """A live stereo session's calibration, ROS-free: what the node's stereo mode runs on ``~/calibrate``.
 
-:func:`calibrate_session` is :func:`~.stereo.stereo_from_detections` (the CLI's ``pascal-calib
+:func:`calibrate_stereo_session` is :func:`~.stereo.stereo_from_detections` (the CLI's ``pascal-calib
 stereo`` on the same detections gives the same numbers) followed by the checks a published
 calibration must pass (:func:`stereo_doubts`); only then are the files written
 (:meth:`~.stereo.StereoOutcome.write`): ``left.yaml``, ``right.yaml``, ``stereo.yaml`` and each
@@ -81,7 +81,8 @@ def stereo_doubts(outcome: StereoOutcome) -> list[str]:
     return doubts
 
 
-def calibrate_session(dets: list[list[Detection]], target: Target, options: StereoSessionOptions) -> StereoOutcome:
+def calibrate_stereo_session(dets: list[list[Detection]], target: Target, options: StereoSessionOptions
+                             ) -> StereoOutcome:
     """The joint calibration of the session's shots (``dets[0]`` left, ``dets[1]`` right), checked;
     nothing written. Raises :class:`~..calibrate.result.CalibrationError` when it cannot be
     calibrated and :class:`StereoSessionError` when the result cannot be published."""

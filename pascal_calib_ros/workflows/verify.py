@@ -27,6 +27,7 @@ from ..geometry.lens import MODELS
 from ..geometry.transform import Transform
 from ..io.calibration_files import CalibrationFile, read_calibration_file
 from ..io.hand_eye_yaml import read_hand_eye_yaml, read_poses_yaml
+from ..modes import HandEyeMode
 from ..targets import Target, resolve_target
 from .calibration_record import intrinsic_covariance
 from .detection import detect_files
@@ -73,12 +74,12 @@ def hand_eye_reference(path: Path) -> HandEyeReference:
     try:
         s_t = np.asarray(doc["translation_std_mm"], float).reshape(3)
         s_r = np.asarray(doc["rotation_std_deg"], float).reshape(3)
-        mode = str(doc["mode"])
+        mode = HandEyeMode(str(doc["mode"]))
     except (KeyError, TypeError, ValueError) as e:
-        raise VerifyInputError(f"{path}: a hand-eye result needs mode, translation_std_mm and rotation_std_deg "
-                               f"({e!r})") from None
-    if mode not in ("eye_in_hand", "eye_to_hand") or not (np.all(np.isfinite(s_t)) and np.all(np.isfinite(s_r))):
-        raise VerifyInputError(f"{path}: mode must be eye_in_hand or eye_to_hand and the sigmas finite")
+        raise VerifyInputError(f"{path}: a hand-eye result needs mode (eye_in_hand or "
+                               f"eye_to_hand), translation_std_mm and rotation_std_deg ({e!r})") from None
+    if not (np.all(np.isfinite(s_t)) and np.all(np.isfinite(s_r))):
+        raise VerifyInputError(f"{path}: the sigmas must be finite")
     share = [np.asarray(doc.get(k) or np.zeros(3), float).reshape(3)
              for k in ("translation_std_intrinsics_mm", "rotation_std_intrinsics_deg")]
     return HandEyeReference(mode, X, s_t, s_r, str(doc.get("parent_frame", "")), str(doc.get("child_frame", "")),
@@ -144,7 +145,7 @@ def hand_eye_reference_of_result(he: HandEyeResult, parent_frame: str, camera_fr
                             intrinsics_share_deg=np.asarray(he.intrinsics_share_deg, float))
 
 
-def verify_views(dets: list[Detection], target: Target, reference: Reference,
+def verify_detections(dets: list[Detection], target: Target, reference: Reference,
                  robot_poses: list[Transform | None] | None = None, hand_eye: HandEyeReference | None = None,
                  alpha: float = DEFAULT_ALPHA) -> tuple[Verification, str]:
     """The verification of collected views (the node's ``~/verify``) and its answer in one line: the

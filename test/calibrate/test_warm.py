@@ -18,7 +18,7 @@ import pytest
 
 from pascal_calib_ros.calibrate.options import CalibrationOptions
 from pascal_calib_ros.calibrate.pipeline import calibrate
-from pascal_calib_ros.calibrate.warm import calibrate_session
+from pascal_calib_ros.calibrate.warm import calibrate_warm
 from pascal_calib_ros.detect.detection import Detection
 from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.sim.arm import ArmSpec, simulate_arm_session
@@ -38,10 +38,10 @@ def session(request: pytest.FixtureRequest) -> tuple[Target, list[Detection]]:
 def test_a_session_grown_view_by_view_gets_the_cold_calibration(session: tuple[Target, list[Detection]]) -> None:
     target, dets = session
     opt = CalibrationOptions()
-    _, start = calibrate_session(dets[:6], target, opt)
+    _, start = calibrate_warm(dets[:6], target, opt)
     assert start is not None, "a plain calibration gives the next call's start"
     for n in (7, 8, 9):
-        warm, nxt = calibrate_session(dets[:n], target, opt, start)
+        warm, nxt = calibrate_warm(dets[:n], target, opt, start)
         cold = calibrate(dets[:n], target, opt)
         assert warm.refinement is not None and cold.refinement is not None
         assert warm.refinement.nfev < cold.refinement.nfev  # it did start warm
@@ -58,14 +58,14 @@ def test_a_session_grown_view_by_view_gets_the_cold_calibration(session: tuple[T
 def test_anything_but_a_grown_session_is_calibrated_cold(session: tuple[Target, list[Detection]]) -> None:
     target, dets = session
     opt = CalibrationOptions()
-    _, start = calibrate_session(dets[:7], target, opt)
+    _, start = calibrate_warm(dets[:7], target, opt)
     assert start is not None and start.applies(dets[:8], target, opt) and start.applies(dets[:7], target, opt)
     other = [replace(d) for d in dets]  # the same views, other detections
     for views, tgt, o in ((dets[:6], target, opt), (dets[1:8], target, opt), (other[:8], target, opt),
                           (dets[:8], resolve_target(target.name), opt),
                           (dets[:8], target, replace(opt, distortion="radial"))):
         assert not start.applies(views, tgt, o)
-        warm, _ = calibrate_session(views, tgt, o, start)
+        warm, _ = calibrate_warm(views, tgt, o, start)
         cold = calibrate(views, tgt, o)
         np.testing.assert_array_equal(warm.K, cold.K)  # the cold path itself
 
@@ -79,17 +79,17 @@ def _shaken(det: Detection, px: float, seed: int) -> Detection:
 def test_a_calibration_that_is_not_plain_gives_no_start(session: tuple[Target, list[Detection]]) -> None:
     target, dets = session
     opt = CalibrationOptions()
-    cal, start = calibrate_session(dets[:7], target, replace(opt, refine=False))
+    cal, start = calibrate_warm(dets[:7], target, replace(opt, refine=False))
     assert not cal.refined and start is None
     # a view dropped as an outlier after the first refinement: the next call is cold
     shaken = [*dets[:3], _shaken(dets[3], 1.0, 0), *dets[4:7]]
-    cal, start = calibrate_session(shaken, target, opt)
+    cal, start = calibrate_warm(shaken, target, opt)
     assert not cal.views[3].used and "outlier" in cal.views[3].reason and start is None
     # so is a grown session whose new view would be dropped
-    _, start = calibrate_session(dets[:6], target, opt)
+    _, start = calibrate_warm(dets[:6], target, opt)
     assert start is not None
     grown = [*dets[:6], _shaken(dets[6], 1.0, 1)]
-    warm, nxt = calibrate_session(grown, target, opt, start)
+    warm, nxt = calibrate_warm(grown, target, opt, start)
     cold = calibrate(grown, target, opt)
     assert not warm.views[6].used and nxt is None
     np.testing.assert_array_equal(warm.K, cold.K)  # computed cold

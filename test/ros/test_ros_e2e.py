@@ -269,7 +269,7 @@ def _replayed(tmp_path: Path, imgs: Path, cal_params: dict, min_accepted: int) -
 
 def test_grid_target_with_estimated_shape(tmp_path: Path) -> None:
     """A ring grid printed on a bent sheet: the node collects grid views, calibrates with the
-    estimated warp and writes it to calibration.json; a ring target with a shape is refused."""
+    estimated warp and writes it to report.json; a ring target with a shape is refused."""
     imgs = tmp_path / "imgs"
     spec = SessionSpec(width=800, height=600, focal=600, views=10, k1=-0.2, seed=5, size_range=(0.5, 0.85),
                        warp_x=0.001)
@@ -283,8 +283,8 @@ def test_grid_target_with_estimated_shape(tmp_path: Path) -> None:
         got = camera_info_subscription(client)
         assert client.spin_until(lambda: bool(got), 10), cal.log()
         _check_k(got[-1].k, _truth(imgs))
-        doc = json.loads((out / "calibration.json").read_text())
-        assert abs(doc["target_shape"]["warp_x"] - 0.001) < 1e-4, doc["target_shape"]
+        doc = json.loads((out / "report.json").read_text())
+        assert abs(doc["target_shape"]["estimated"]["warp_x"] - 0.001) < 1e-4, doc["target_shape"]
     bad = NodeProcess("calibration_node", {"target": "ring_a4", "target_shape": "warp"}, next_domain_id(),
                       tmp_path / "bad.log")
     assert bad.wait(30) == 2

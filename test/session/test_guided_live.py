@@ -168,7 +168,7 @@ def test_a_failing_update_is_reported_and_never_leaves_the_guide_computing(ring_
     def broken(*_: object, **__: object) -> None:
         raise np.linalg.LinAlgError("SVD did not converge")
 
-    monkeypatch.setattr(gl, "calibrate_session", broken)
+    monkeypatch.setattr(gl, "calibrate_warm", broken)
     guide = GuidedLive(ring_target, CalibrationOptions(), goal_sigma_px=0.1)
     dets = []
     for k in range(3):

@@ -6,12 +6,20 @@ from __future__ import annotations
 import numpy as np
 
 from pascal_calib_ros.geometry.transform import Transform
-from pascal_calib_ros.workflows.hand_eye import hand_eye_doubts, hand_eye_frames, static_transform_command
+from pascal_calib_ros.modes import HandEyeMode
+from pascal_calib_ros.workflows.hand_eye import (
+    HandEyeFrames,
+    hand_eye_doubts,
+    hand_eye_frames,
+    static_transform_command,
+)
 
 
 def test_frames_by_mode() -> None:
-    assert hand_eye_frames("eye_in_hand", "base_link", "tool0") == ("tool0", "base_link")
-    assert hand_eye_frames("eye_to_hand", "base_link", "tool0") == ("base_link", "tool0")
+    assert hand_eye_frames(HandEyeMode.EYE_IN_HAND, "base_link", "tool0", "cam") == HandEyeFrames("tool0", "cam",
+                                                                                                   "base_link")
+    assert hand_eye_frames(HandEyeMode.EYE_TO_HAND, "base_link", "tool0", "cam") == HandEyeFrames("base_link", "cam",
+                                                                                                   "tool0")
 
 
 def test_static_transform_command_publishes_x() -> None:

@@ -10,12 +10,14 @@ import pytest
 
 from pascal_calib_ros.calibrate.options import CalibrationOptions
 from pascal_calib_ros.calibrate.pipeline import calibrate
+from pascal_calib_ros.io.calibration_json import read_calibration_json
 from pascal_calib_ros.io.camera_yaml import read_camera_yaml
 from pascal_calib_ros.targets import Target
 from pascal_calib_ros.workflows.intrinsic import run_intrinsic
 from pascal_calib_ros.workflows.outputs import (
+    ReportRequest,
+    ResultPaths,
     calibration_file_path,
-    calibration_json,
     camera_info_data,
     output_folder,
     write_camera_file,
@@ -39,8 +41,33 @@ def test_the_camera_yaml_and_json_of_a_calibration(ring_target: Target, ring_ses
     assert np.allclose(info.projection[:, :3], res.K) and np.all(info.projection[:, 3] == 0)
     back = read_camera_yaml(write_camera_file(res, tmp_path / "c.yaml", "wrist"))
     assert back.camera_name == "wrist" and np.allclose(back.K, res.K) and np.allclose(back.D, res.D)
-    doc = json.loads(json.dumps(calibration_json(res), default=float))
-    assert doc["summary"].startswith("fx=") and len(doc["views"]) == len(dets)
+
+
+def test_an_outcome_writes_one_set_of_files_wherever_its_paths_say(ring_target: Target, ring_session,
+                                                                    tmp_path: Path) -> None:
+    """The node's result set (one folder) and the CLI (its options' paths) write through the same
+    ``outcome.write``: the camera YAML, its versioned record (the one calibration.json), the report;
+    the CameraInfo the node publishes is the outcome's ``camera_info``."""
+    _, _, dets = ring_session
+    out = run_intrinsic(dets, ring_target, CalibrationOptions())
+    node = out.write(ResultPaths.in_folder(tmp_path / "set", "wrist", report=True), "wrist",
+                     ReportRequest(dets, None))
+    assert [p.name for p in node.paths] == ["wrist.yaml", "wrist.calibration.json", "report.pdf", "report.png",
+                                            "report.json"] and not node.warnings
+    cli = out.write(ResultPaths(tmp_path / "cli" / "c.yaml"), "wrist")
+    assert [p.name for p in cli.paths] == ["c.yaml", "c.calibration.json"]
+    assert (tmp_path / "cli" / "c.yaml").read_text() == (tmp_path / "set" / "wrist.yaml").read_text()
+    record = read_calibration_json(tmp_path / "set" / "wrist.calibration.json")
+    assert record.covariance is not None and np.allclose(record.camera.K, out.assessment.result.K)
+    doc = json.loads((tmp_path / "set" / "report.json").read_text())
+    assert len(doc["views"]) == len(dets)
+    info = out.camera_info("wrist")
+    assert info.camera_name == "wrist" and np.array_equal(info.K, out.assessment.result.K)
+    # a report that cannot be written is a warning, never a lost calibration
+    (tmp_path / "blocked").write_text("a file where the report's folder should be")
+    bad = out.write(ResultPaths(tmp_path / "ok.yaml", report_dir=tmp_path / "blocked"), "wrist",
+                    ReportRequest(dets, None))
+    assert bad.warnings and bad.warnings[0].startswith("report not written") and (tmp_path / "ok.yaml").exists()
 
 
 def test_the_answer_says_the_result_and_why_there_is_no_cross_validation(ring_target: Target, ring_session) -> None:

@@ -125,6 +125,7 @@ def test_warm_arm_suggestions_answer_what_the_cold_call_answers() -> None:
     """The node's sequence (a call after every capture) starts each call from the previous estimate:
     the same document up to the last rounded digit; a removed view or a reset is answered cold."""
     from pascal_calib_ros.detect.target_detector import detect_target
+    from pascal_calib_ros.io.next_yaml import next_document
     from pascal_calib_ros.workflows.suggest import SuggestOptions, WarmArmSuggestions, suggest_for_arm
 
     target = resolve_target("ring_grid_a4")
@@ -133,25 +134,25 @@ def test_warm_arm_suggestions_answer_what_the_cold_call_answers() -> None:
     robot = list(s.robot_poses)
     opt, frames, guide = SuggestOptions(mode="eye_in_hand"), ("base_link", "tool0"), WarmArmSuggestions()
     for n in (5, 6, 7, 8):
-        warm = guide.suggest(dets[:n], robot[:n], target, opt, frames)
-        cold = suggest_for_arm(dets[:n], robot[:n], target, opt, frames)
+        warm = next_document(guide.suggest(dets[:n], robot[:n], target, opt, frames))
+        cold = next_document(suggest_for_arm(dets[:n], robot[:n], target, opt, frames))
         assert warm.keys() == cold.keys() and warm["done"] == cold["done"] and warm["views_used"] == n
         assert len(warm["suggestions"]) == len(cold["suggestions"]) > 0
         np.testing.assert_allclose(_numbers(warm), _numbers(cold), rtol=1e-4, atol=2e-6)
     for views in (dets[:7], dets[:8]):  # one view fewer: cold; then the same views again after a reset
         if len(views) == 8:
             guide.reset()
-        assert guide.suggest(views, robot[:len(views)], target, opt, frames) == \
-            suggest_for_arm(views, robot[:len(views)], target, opt, frames)
+        assert next_document(guide.suggest(views, robot[:len(views)], target, opt, frames)) == \
+            next_document(suggest_for_arm(views, robot[:len(views)], target, opt, frames))
     # issue 36: the view at the first suggestion was refused: the next call offers nothing in its
     # neighbourhood (the arm's roll counted), as many suggestions as before, the figures now unchanged
     from pascal_calib_ros.analysis.arm_guidance import DISTINCT_ROLL_DEG
     from pascal_calib_ros.analysis.view_ranking import distinct_from_all
-    from pascal_calib_ros.workflows.suggest import placement_of_doc
+    from pascal_calib_ros.io.next_yaml import placement_of_doc
 
-    before = suggest_for_arm(dets, robot, target, opt, frames)
+    before = next_document(suggest_for_arm(dets, robot, target, opt, frames))
     was = placement_of_doc(before["suggestions"][0]["placement"])
-    after = guide.suggest(dets, robot, target, opt, frames, avoid=[was])
+    after = next_document(guide.suggest(dets, robot, target, opt, frames, avoid=[was]))
     assert after["avoided"] == [before["suggestions"][0]["placement"]]
     assert len(after["suggestions"]) == len(before["suggestions"])
     assert after["suggestions"][0] != before["suggestions"][0]
@@ -172,7 +173,7 @@ def test_a_refused_newest_image_makes_the_previous_first_suggestion_avoided(
     import cv2
 
     from pascal_calib_ros.analysis.view_ranking import distinct_from_all
-    from pascal_calib_ros.workflows.suggest import placement_of_doc
+    from pascal_calib_ros.io.next_yaml import placement_of_doc
 
     folder = tmp_path / "views"
     folder.mkdir()

@@ -17,6 +17,7 @@ import numpy as np
 
 from ...geometry.lens import DISTORTION_CHOICES, LensModel
 from ...geometry.transform import Transform
+from ...modes import HandEyeMode
 from ...targets import Target
 from ..covariance import correlation_factor
 from ..lm import WARM_START, LMResult, levenberg_marquardt
@@ -97,8 +98,8 @@ def _setup(views: list[ViewData], start: ChainStart, opt: CalibrationOptions, he
         D0 = np.r_[D0, np.zeros(lens.n)][: lens.n]
     intr0 = np.array([K0[0, 0], K0[1, 1], K0[0, 2], K0[1, 2], 0.0 if opt.zero_skew else K0[0, 1], *D0])
     scale = max(float(cal.rms), 0.01) if np.isfinite(cal.rms) else 0.05
-    chain = RobotChain(start.M, he.mode == "eye_in_hand", np.radians(he.robot_sigma_deg), he.robot_sigma_mm / 1000,
-                       scale)
+    chain = RobotChain(start.M, he.mode == HandEyeMode.EYE_IN_HAND, np.radians(he.robot_sigma_deg),
+                       he.robot_sigma_mm / 1000, scale)
     prob = ChainProblem(views, () if he.intrinsics == "hold" else free, opt.edge_offsets, chain, LOSS_SCALE, shape,
                         frame, lens)
     xy = np.r_[start.X.rotvec, start.X.translation, start.Y.rotvec, start.Y.translation]

@@ -15,6 +15,7 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from ...geometry.transform import Transform
+from ...modes import HandEyeMode
 from .options import (
     MIN_AXIS_SPREAD_DEG,
     MIN_MOTION_DEG,
@@ -76,9 +77,9 @@ def _stack(T: list[Transform]) -> tuple[Rotation, np.ndarray]:
     return Rotation.concatenate([t.rotation for t in T]), np.array([t.translation for t in T]).reshape(-1, 3)
 
 
-def chain_pose(robot_pose: Transform, mode: str) -> Transform:
+def chain_pose(robot_pose: Transform, mode: HandEyeMode) -> Transform:
     """M_i of the loop Y = M_i X C_i: the robot pose (eye in hand) or its inverse (eye to hand)."""
-    return robot_pose if mode == "eye_in_hand" else robot_pose.inverse()
+    return robot_pose if mode == HandEyeMode.EYE_IN_HAND else robot_pose.inverse()
 
 
 def motion_pairs(M: list[Transform], C: list[Transform]) -> Motions:
@@ -162,7 +163,7 @@ def ring_closed_form(M: list[Transform], centres: np.ndarray, normals: np.ndarra
     return X, Transform.from_rt(RY, pc)
 
 
-def check_robot_poses(poses: list[Transform], mode: str) -> None:
+def check_robot_poses(poses: list[Transform], mode: HandEyeMode) -> None:
     """Refuse motions that leave X undetermined: fewer than 3 poses, no rotation between the poses
     (pure translations), or rotations about a single axis (the spread of the relative motions'
     axes below :data:`MIN_AXIS_SPREAD_DEG`)."""
@@ -195,7 +196,7 @@ def check_robot_poses(poses: list[Transform], mode: str) -> None:
                            "least two different axes between views")
 
 
-def chain_disagreement(M: list[Transform], X: Transform, Y: Transform, C: list[Transform], mode: str
+def chain_disagreement(M: list[Transform], X: Transform, Y: Transform, C: list[Transform], mode: HandEyeMode
                        ) -> tuple[np.ndarray, np.ndarray]:
     """Per view (mm, deg) of G_i^-1 G'_i: the measured robot pose against the one the images imply
     (eye in hand M^-1 Y C^-1 X^-1, eye to hand M X C Y^-1)."""
@@ -203,7 +204,7 @@ def chain_disagreement(M: list[Transform], X: Transform, Y: Transform, C: list[T
         return np.zeros(0), np.zeros(0)
     RM, tM = _stack(M)
     RC, tC = _stack(C)
-    if mode == "eye_in_hand":
+    if mode == HandEyeMode.EYE_IN_HAND:
         R1, t1 = RM.inv() * Y.rotation, RM.inv().apply(Y.translation - tM)
         R2 = R1 * RC.inv()
         t2 = t1 - R2.apply(tC)

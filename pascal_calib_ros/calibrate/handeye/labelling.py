@@ -11,6 +11,7 @@ from dataclasses import replace
 import numpy as np
 
 from ...geometry.transform import Transform
+from ...modes import HandEyeMode
 from ...targets import Target
 from ..observations import ViewData
 from .closed_form import chain_disagreement, hand_eye_closed_form
@@ -110,7 +111,7 @@ def _choose_labels(M: list[Transform], C: list[Transform], syms: list[Transform]
 
 
 def label_consistently(M: list[Transform], C: list[Transform], views: list[ViewData], syms: list[Transform],
-                       mode: str, target_name: str) -> tuple[list[Transform], list[ViewData], list[str]]:
+                       mode: HandEyeMode, target_name: str) -> tuple[list[Transform], list[ViewData], list[str]]:
     """Every view's labelling among the target's symmetries ``syms`` chosen consistently with the
     robot chain (module docstring): the labelling that best fits, over three reference views, then
     each view again against X and Y of the closed form; the session's labelling is kept where most

@@ -7,10 +7,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...geometry.transform import Transform
+from ...modes import HandEyeMode
 from ..result import CalibrationError, CalibrationResult
-
-HAND_EYE_MODES = ("eye_in_hand", "eye_to_hand")
-
 
 MIN_VIEWS = 3
 
@@ -27,7 +25,7 @@ class HandEyeError(CalibrationError):
 
 @dataclass
 class HandEyeOptions:
-    mode: str = "eye_in_hand"
+    mode: HandEyeMode = HandEyeMode.EYE_IN_HAND
     robot_sigma_mm: float = 0.1  # the arm's pose accuracy per axis (start value when estimated)
     robot_sigma_deg: float = 0.01
     estimate_robot_noise: bool = True  # estimate the arm's accuracy from the data (variance components)
@@ -42,6 +40,12 @@ class HandEyeOptions:
     # sigmas of X and Y is added (0: left out). A prior from the arm's absolute accuracy, not a measurement
     arm_accuracy_mm: float = 0.2
     arm_accuracy_length: float = 0.3  # m
+
+    def __post_init__(self) -> None:
+        try:  # the mode's text (a parameter, an option) becomes the enum; unknown text is refused here
+            self.mode = HandEyeMode(self.mode)
+        except ValueError:
+            raise HandEyeError(f"unknown hand-eye mode {self.mode!r}; choose one of {', '.join(HandEyeMode)}") from None
 
     def arm_accuracy_problem(self) -> str:
         """Why the arm-accuracy prior cannot be used ("" if it can)."""
@@ -67,7 +71,7 @@ class HandEyeView:
 @dataclass
 class HandEyeResult:
     calibration: CalibrationResult
-    mode: str
+    mode: HandEyeMode
     hand_eye: Transform  # camera -> tool (eye_in_hand) or camera -> base (eye_to_hand)
     translation_std_mm: np.ndarray  # (3,) along the parent frame's axes
     rotation_std_deg: np.ndarray  # (3,) small rotations about the parent frame's axes
@@ -93,4 +97,4 @@ class HandEyeResult:
 
     @property
     def parent_frame_role(self) -> str:
-        return "tool" if self.mode == "eye_in_hand" else "base"
+        return "tool" if self.mode == HandEyeMode.EYE_IN_HAND else "base"

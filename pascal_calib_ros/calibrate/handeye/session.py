@@ -62,12 +62,13 @@ import numpy as np
 
 from ...detect.detection import Detection
 from ...geometry.transform import Transform
+from ...modes import HandEyeMode
 from ...targets import Target
 from ..observations import ViewData
 from ..options import CalibrationOptions
 from ..pipeline import DEFAULT_OPTIONS
 from ..result import CalibrationError, CalibrationResult, ViewReport
-from ..warm import calibrate_session
+from ..warm import calibrate_warm
 from .chain_refinement import ChainSolution, ChainStart, jackknife_spread, refine_chain
 from .closed_form import (
     Motions,
@@ -82,19 +83,21 @@ from .closed_form import (
     target_from_chain,
 )
 from .labelling import label_consistently, target_symmetries
-from .options import HAND_EYE_MODES, MIN_VIEWS, HandEyeError, HandEyeOptions, HandEyeResult, HandEyeView
+from .options import MIN_VIEWS, HandEyeError, HandEyeOptions, HandEyeResult, HandEyeView
 from .outliers import Disagreement, drop_disagreeing_views
 from .sigma import Spread
 from .view_poses import posed_views, refined_poses
 from .warm import HandEyeStart
 
 
-def _checked(dets: list[Detection], robot_poses: Sequence[Transform | None], mode: str,
+def _checked(dets: list[Detection], robot_poses: Sequence[Transform | None], text: HandEyeMode | str,
              he: HandEyeOptions | None) -> tuple[HandEyeOptions, list[Detection]]:
     """The options for ``mode`` and the detections with views without a robot pose refused; a
     HandEyeError for inputs that cannot work."""
-    if mode not in HAND_EYE_MODES:
-        raise HandEyeError(f"unknown hand-eye mode {mode!r}; choose one of {', '.join(HAND_EYE_MODES)}")
+    try:
+        mode = HandEyeMode(text)
+    except ValueError:
+        raise HandEyeError(f"unknown hand-eye mode {text!r}; choose one of {', '.join(HandEyeMode)}") from None
     he = replace(he, mode=mode) if he is not None else HandEyeOptions(mode)
     if len(robot_poses) != len(dets):
         raise HandEyeError(f"{len(robot_poses)} robot poses for {len(dets)} views: one per view (None if unknown)")
@@ -137,7 +140,8 @@ def _closed_form_solver(M: list[Transform], C: list[Transform], axisymmetric: bo
     return solve
 
 
-def calibrate_hand_eye(dets: list[Detection], robot_poses: Sequence[Transform | None], target: Target, mode: str,
+def calibrate_hand_eye(dets: list[Detection], robot_poses: Sequence[Transform | None], target: Target,
+                       mode: HandEyeMode | str,
                        options: CalibrationOptions = DEFAULT_OPTIONS, he: HandEyeOptions | None = None
                        ) -> HandEyeResult:
     """Joint intrinsic + hand-eye calibration (module docstring). ``robot_poses[i]`` is the tool
@@ -145,7 +149,8 @@ def calibrate_hand_eye(dets: list[Detection], robot_poses: Sequence[Transform | 
     return calibrate_hand_eye_warm(dets, robot_poses, target, mode, options, he)[0]
 
 
-def calibrate_hand_eye_warm(dets: list[Detection], robot_poses: Sequence[Transform | None], target: Target, mode: str,
+def calibrate_hand_eye_warm(dets: list[Detection], robot_poses: Sequence[Transform | None], target: Target,
+                            mode: HandEyeMode | str,
                             options: CalibrationOptions = DEFAULT_OPTIONS, he: HandEyeOptions | None = None,
                             start: HandEyeStart | None = None) -> tuple[HandEyeResult, HandEyeStart]:
     """:func:`calibrate_hand_eye`, warm from a previous call's ``start`` where it applies (:mod:`.warm`:
@@ -155,7 +160,7 @@ def calibrate_hand_eye_warm(dets: list[Detection], robot_poses: Sequence[Transfo
     if start is not None and not start.applies(*given, he):
         start = None
     try:
-        cal, intrinsic = calibrate_session(dets, target, options, start.intrinsic if start else None)
+        cal, intrinsic = calibrate_warm(dets, target, options, start.intrinsic if start else None)
     except HandEyeError:
         raise
     except CalibrationError as e:
@@ -166,13 +171,13 @@ def calibrate_hand_eye_warm(dets: list[Detection], robot_poses: Sequence[Transfo
     observed = dict(zip(intrinsic.first.idx, intrinsic.first.res.first_views, strict=True)) if intrinsic else None
     views, C, idx = posed_views(dets, reports, target, cal.camera(), options, axisymmetric, refined_poses(cal),
                                 observed)
-    M = [chain_pose(robot_poses[k], mode) for k in idx]  # type: ignore[arg-type]
+    M = [chain_pose(robot_poses[k], he.mode) for k in idx]  # type: ignore[arg-type]
     if len(idx) < MIN_VIEWS:
         raise HandEyeError(f"only {len(idx)} view(s) with a robot pose and a camera pose; need {MIN_VIEWS}")
-    check_robot_poses([robot_poses[k] for k in idx], mode)  # type: ignore[misc]
+    check_robot_poses([robot_poses[k] for k in idx], he.mode)  # type: ignore[misc]
     syms = [] if axisymmetric else target_symmetries(target, target.local_origin)
     if len(syms) > 1:  # symmetric targets: a consistent labelling through the robot chain
-        C, views, more = label_consistently(M, C, views, syms, mode, target.name)
+        C, views, more = label_consistently(M, C, views, syms, he.mode, target.name)
         warnings += more
     solve = _closed_form_solver(M, C, axisymmetric)
     active, dropped = drop_disagreeing_views(M, C, solve, he, axisymmetric)
@@ -196,7 +201,7 @@ def calibrate_hand_eye_warm(dets: list[Detection], robot_poses: Sequence[Transfo
         warnings.append("a single ring: the target's rotation about its axis is not observable (reported "
                         "arbitrarily); X is not affected")
     per_view = _per_view(reports, kept, {idx[i]: d for i, d in dropped.items()},
-                         chain_disagreement(M, sol.X, sol.Y, sol.poses, mode))
+                         chain_disagreement(M, sol.X, sol.Y, sol.poses, he.mode))
     for j, k in enumerate(kept):
         reports[k].used, reports[k].reason = True, ""
         reports[k].rms, reports[k].edge_offset = float(sol.view_rms[j]), float(sol.offsets[j])

@@ -10,6 +10,7 @@ import numpy as np
 
 from ...geometry.so3 import left_jacobian
 from ...geometry.transform import Transform
+from ...modes import HandEyeMode
 from .chain import ChainProblem
 from .closed_form import (
     chain_pose,
@@ -78,7 +79,7 @@ def arm_field_share(prob: ChainProblem, x: np.ndarray, intr0: np.ndarray, A: np.
     the target where it is, the arm reports it elsewhere); what varies over the poses bends X."""
     xy = prob.chain_params(x)
     poses = np.array(prob.unpack(x, intr0)[2])
-    mode = "eye_in_hand" if prob.chain.eye_in_hand else "eye_to_hand"
+    mode = HandEyeMode.EYE_IN_HAND if prob.chain.eye_in_hand else HandEyeMode.EYE_TO_HAND
     G = [chain_pose(m, mode) for m in M]  # the tool poses (chain_pose is its own inverse)
     nv, h = len(G), 1e-6
     D = np.zeros((6 * nv, 3 * nv))
