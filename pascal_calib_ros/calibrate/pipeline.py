@@ -40,6 +40,7 @@ from .start import (
     DegenerateStartError,
     closed_form_start,
     division_start,
+    restart_order,
     start_distortion,
     start_poses,
     zhang_start,
@@ -113,16 +114,20 @@ def restartable(opt: CalibrationOptions, target: Target) -> bool:
             and "k1" in DISTORTION_MODELS[opt.distortion])
 
 
-RESTART_FINISHES = 3  # restarted starts carried through the checks, best first refinement first
+RESTART_FINISHES = 3  # restarted starts carried through the checks, in :func:`.start.restart_order`
 
 
 def restarted(dets: list[Detection], target: Target, options: CalibrationOptions, rms_to_beat: float
               ) -> tuple[CalibrationResult, Prepared, Refined] | None:
     """The calibration from the division-model starts (:func:`.start.division_start`): each start
-    refined, the best first refinements (edge RMS) carried through :func:`finish` until one passes
-    its checks with an edge RMS below ``rms_to_beat``; None if none does. All of them minimise the
-    same cost over the same observations; the starts differ only in which minimum they reach."""
-    firsts: list[tuple[float, Prepared, Refined]] = []
+    refined, the first refinements ranked by :func:`.start.restart_order` (their robust cost over
+    the same observations; fits the noise cannot tell apart by their extrapolation to the image
+    corners) and carried through :func:`finish` in that order until one passes its checks with an
+    edge RMS below ``rms_to_beat``; None if none does. All of them minimise the same cost over the
+    same observations before their outlier rejection; the starts differ only in which minimum they
+    reach (on a single ring through a wide lens, minima whose distortion differs mostly in the
+    unobserved image corners)."""
+    firsts: list[tuple[Prepared, Refined]] = []
     for kappa in RESTART_KAPPAS:
         prep = prepare(dets, target, options)
         try:
@@ -130,9 +135,10 @@ def restarted(dets: list[Detection], target: Target, options: CalibrationOptions
         except CalibrationError:
             continue
         if isinstance(first, Refined) and np.isfinite(first.res.rms):
-            firsts.append((first.res.rms, prep, first))
-    firsts.sort(key=lambda t: t[0])
-    for _, prep, first in firsts[:RESTART_FINISHES]:
+            firsts.append((prep, first))
+    order = restart_order([(first.res, first.idx) for _, first in firsts], dets[0].width, dets[0].height)
+    for i in order[:RESTART_FINISHES]:
+        prep, first = firsts[i]
         try:
             cal = finish(dets, target, prep, first)
         except CalibrationError:

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from ..detect.detection import Detection
+from ..geometry.camera import Camera
 from ..geometry.circular import CircularPointError
 from ..geometry.iac import DegenerateViewsError, IacSolution, IndefiniteOmegaError
 from ..geometry.lens import DISTORTION_CHOICES
@@ -29,7 +30,8 @@ from .plumbline import (
     undistort_detections,
     virtual_pinhole_detections,
 )
-from .problem import DISTORTION_MODELS
+from .problem import DISTORTION_MODELS, SHAPE_NAMES, Problem
+from .refine import RefineResult
 from .result import CalibrationError, ViewReport
 from .zhang import calibrate_zhang
 
@@ -187,3 +189,63 @@ def start_distortion(dets: list[Detection], start: ClosedFormStart, opt: Calibra
         f = float(np.sqrt(start.sol.K[0, 0] * start.sol.K[1, 1]))
         D0[0], D0[1] = plumb_bob_from_division(start.division, f, r_max, "k2" in DISTORTION_MODELS[opt.distortion])
     return D0
+
+
+# restarted fits whose costs over the same observations differ by at most this much chi-square (the
+# data's own one-sigma likelihood interval) are tied: the data do not prefer either
+RESTART_TIE_CHI2 = 1.0
+RESTART_TIE_ROUND_PX = 0.01  # the tied fits' corner displacements are compared to this (not to the last bits)
+
+
+def view_costs(res: RefineResult) -> np.ndarray:
+    """Per view, the refinement's robust cost sum rho(r) (:meth:`.problem.Problem.robust_cost`) at
+    its solution over *all* the observations it started with (``first_views``): those its outlier
+    rejection dropped included, so that fits which rejected different observations are scored on
+    the same data."""
+    p = res.problem
+    assert p is not None and res.x is not None and res.intr0 is not None
+    full = Problem(res.first_views, p.dof, tuple(p.names[i] for i in p.free), p.use_offsets,
+                   loss_scale=p.loss_scale, shape=tuple(SHAPE_NAMES[i] for i in p.shape_idx),
+                   shape_frame=p.frame, lens=p.lens)
+    f = full.residuals(res.x, res.intr0)
+    return np.array([full.robust_cost(f[rows], p.loss_scale) for rows in full.rows_of_view])
+
+
+def corner_displacement(res: RefineResult, w: int, h: int) -> float:
+    """How far (px) the fitted distortion moves the image corners, where a session's views rarely
+    reach and the model extrapolates: max over the four corners p of |K x_u(p) - p|, x_u(p) the
+    pinhole coordinates (x/z, y/z) of the ray the fitted camera sees at p; inf where it has none
+    (the model folds over before the corner)."""
+    cam = Camera(res.K, res.D, w, h, res.model)
+    corners = np.array([[0.0, 0.0], [w, 0.0], [0.0, h], [w, h]])
+    xu = cam.undistort_pixels(corners)
+    d = np.linalg.norm(np.c_[xu, np.ones(4)] @ res.K[:2].T - corners, axis=1)
+    return float(np.max(d)) if np.all(np.isfinite(d)) else float("inf")
+
+
+def restart_order(fits: list[tuple[RefineResult, list[int]]], w: int, h: int) -> list[int]:
+    """The order (indices into ``fits``: refinements with the session index of each of their
+    views) in which restarted fits are tried, best first.
+
+    Each fit is scored by its robust cost C over the observations of the views every fit posed,
+    outliers included (:func:`view_costs`): the edge RMS after each fit's own outlier rejection is
+    no score, since a fit that extrapolates badly towards the rim rejects the rim's edge points
+    and so reaches a *lower* RMS on fewer points. Fits within the noise of the best,
+    2 (C - C_best) / (kappa sigma^2) <= RESTART_TIE_CHI2 (sigma the best fit's RMS, kappa its
+    residuals' correlation factor, :func:`.covariance.correlation_factors`; C ~ sum r^2 / 2), are
+    tied: the data cannot tell them apart, only their extrapolation to the unobserved image
+    corners differs, and that decides among them, the smallest :func:`corner_displacement` (to
+    RESTART_TIE_ROUND_PX) first: a weak prior of no distortion where nothing was observed, as
+    mrcal's regularisation of the lens parameters pulls them towards zero where the data leave
+    them free. The rest follow by cost; equal keys keep the fits' order."""
+    if not fits:
+        return []
+    common = set.intersection(*(set(idx) for _, idx in fits))
+    cost = [float(sum(c for k, c in zip(idx, view_costs(res), strict=True) if k in common)) for res, idx in fits]
+    best = int(np.argmin(cost))
+    res = fits[best][0]
+    tol = 0.5 * RESTART_TIE_CHI2 * max(res.kappa) * res.rms**2
+    tied = [i for i in range(len(fits)) if cost[i] - cost[best] <= tol]
+    shift = {i: float(np.round(corner_displacement(fits[i][0], w, h) / RESTART_TIE_ROUND_PX)) for i in tied}
+    rest = [i for i in range(len(fits)) if i not in shift]
+    return sorted(tied, key=lambda i: shift[i]) + sorted(rest, key=lambda i: cost[i])
