@@ -16,11 +16,12 @@ from ..geometry.transform import Transform
 from ..io.bags import BagError
 from ..io.hand_eye_yaml import PosesYamlError, read_poses_yaml
 from ..io.session_folder import SessionFolder
+from ..io.tf_command import static_transform_command
 from ..report.text import format_summary, hand_eye_summary
 from ..session.arm_bag import read_arm_bag
 from ..targets import Target
 from ..workflows.detection import detect_files, detect_images, detection_params
-from ..workflows.hand_eye import hand_eye_frames, run_hand_eye, static_transform_command
+from ..workflows.hand_eye import hand_eye_frames, run_hand_eye
 from ..workflows.outputs import HAND_EYE_FILE, ResultPaths
 from .common import (
     EXIT_CALIB,

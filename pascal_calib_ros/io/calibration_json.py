@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from ..geometry.camera import Camera
+from .atomic import write_text_atomic
 from .format_error import CalibrationFileError
 
 FORMAT = "pascal_calib_ros.calibration"
@@ -97,13 +98,8 @@ def calibration_json_text(rec: CalibrationRecord) -> str:
 
 
 def write_calibration_json(path: str | Path, rec: CalibrationRecord) -> Path:
-    """Write atomically (temporary file, then rename)."""
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    tmp = p.with_name(p.name + ".tmp")
-    tmp.write_text(calibration_json_text(rec))
-    tmp.replace(p)
-    return p
+    """Write atomically (:mod:`.atomic`)."""
+    return write_text_atomic(path, calibration_json_text(rec))
 
 
 def looks_like_calibration_json(doc: object) -> bool:

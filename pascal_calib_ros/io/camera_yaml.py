@@ -15,6 +15,7 @@ import numpy as np
 import yaml
 
 from ..errors import PascalCalibError
+from .atomic import write_text_atomic
 
 
 class CameraYamlError(PascalCalibError):
@@ -59,13 +60,8 @@ def to_yaml_text(info: CameraInfoData) -> str:
 
 
 def write_camera_yaml(path: str | Path, info: CameraInfoData) -> Path:
-    """Write atomically (temporary file then rename), so a reader never sees half a file."""
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    tmp = p.with_name(p.name + ".tmp")
-    tmp.write_text(to_yaml_text(info))
-    tmp.replace(p)
-    return p
+    """Write atomically (:mod:`.atomic`), so a reader never sees half a file."""
+    return write_text_atomic(path, to_yaml_text(info))
 
 
 def _read_matrix(doc: dict[str, Any], key: str, rows: int, cols: int | None = None) -> np.ndarray:

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from ..geometry.transform import Transform
+from .tf_command import static_transform_command
 
 
 def _frames(doc: dict[str, Any]) -> tuple[str, str]:
@@ -49,14 +50,9 @@ def urdf_joint_text(doc: dict[str, Any], X: Transform, joint_name: str = "") -> 
     return "\n".join(lines)
 
 
-def static_transform_line(doc: dict[str, Any], X: Transform) -> str:
-    """The ``ros2 run tf2_ros static_transform_publisher`` command that publishes X."""
-    parent, child = _frames(doc)
-    t, q = X.translation, X.quat
-    return ("ros2 run tf2_ros static_transform_publisher "
-            f"--x {t[0]:.9f} --y {t[1]:.9f} --z {t[2]:.9f} "
-            f"--qx {q[0]:.10f} --qy {q[1]:.10f} --qz {q[2]:.10f} --qw {q[3]:.10f} "
-            f"--frame-id {parent} --child-frame-id {child}\n")
+def static_transform_text(doc: dict[str, Any], X: Transform) -> str:
+    """The ``ros2 run tf2_ros static_transform_publisher`` command that publishes X, a line."""
+    return static_transform_command(X, *_frames(doc), digits=9) + "\n"
 
 
 def transform_of_urdf_origin(xyz: list[float], rpy: list[float]) -> Transform:

@@ -42,6 +42,7 @@ import yaml
 from ..errors import PascalCalibError
 from ..geometry.transform import Transform, TransformError
 from ..modes import HandEyeMode
+from .atomic import write_text_atomic
 
 
 class PosesYamlError(PascalCalibError):
@@ -160,11 +161,8 @@ class HandEyeRecord:
 
 
 def write_hand_eye_yaml(path: str | Path, record: HandEyeRecord) -> Path:
-    """Write HAND_EYE.yaml (module docstring); returns the path."""
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(yaml.safe_dump(record.document(), sort_keys=False, default_flow_style=None))
-    return p
+    """Write HAND_EYE.yaml (module docstring) atomically (:mod:`.atomic`); returns the path."""
+    return write_text_atomic(path, yaml.safe_dump(record.document(), sort_keys=False, default_flow_style=None))
 
 
 def read_hand_eye_yaml(path: str | Path) -> tuple[dict[str, Any], Transform]:

@@ -167,9 +167,10 @@ def suggestions_of_document(doc: Any) -> Suggestions:
     arm = None
     if "mode" in doc:
         arm = ArmProgress(parse_mode(HandEyeMode, str(doc["mode"]), "mode"), str(doc["frame_id"]),
-                          str(doc["child_frame_id"]), float(doc["hand_eye_sigma_deg"]),
-                          float(doc["hand_eye_sigma_mm"]), float(doc["goal_hand_eye_sigma_deg"]),
-                          float(doc["goal_hand_eye_sigma_mm"]), float(doc["reach_m"]), float(doc["max_turn_deg"]))
+                          str(doc["child_frame_id"]), sigma_deg=float(doc["hand_eye_sigma_deg"]),
+                          sigma_mm=float(doc["hand_eye_sigma_mm"]), goal_deg=float(doc["goal_hand_eye_sigma_deg"]),
+                          goal_mm=float(doc["goal_hand_eye_sigma_mm"]), reach_m=float(doc["reach_m"]),
+                          max_turn_deg=float(doc["max_turn_deg"]))
     return Suggestions(bool(doc["done"]), float(doc["projection_sigma_px"]), float(doc["goal_sigma_px"]),
                        float(doc["distance_m"]), int(doc["views_used"]),
                        tuple(_suggestion_of(d) for d in doc.get("suggestions", [])), arm,

@@ -27,7 +27,9 @@ from ..errors import PascalCalibError
 from ..geometry.camera import Camera
 from ..geometry.rectify import StereoRectification
 from ..geometry.transform import Transform
+from .atomic import write_text_atomic
 from .camera_yaml import CameraInfoData, write_camera_yaml
+from .tf_command import static_transform_command
 
 
 class StereoYamlError(PascalCalibError):
@@ -42,22 +44,10 @@ def _v(a: np.ndarray) -> list[float]:
     return [float(v) for v in np.asarray(a, float).ravel()]
 
 
-def static_transform_line(pose: Transform, parent: str, child: str) -> str:
-    """The ``static_transform_publisher`` command publishing ``pose`` (p_parent = R p_child + t)."""
-    t, q = pose.translation, pose.quat
-    return ("ros2 run tf2_ros static_transform_publisher "
-            f"--x {t[0]:.6f} --y {t[1]:.6f} --z {t[2]:.6f} --qx {q[0]:.7f} --qy {q[1]:.7f} --qz {q[2]:.7f} "
-            f"--qw {q[3]:.7f} --frame-id {parent} --child-frame-id {child}")
-
-
 def _dump(path: Path, header: str, doc: dict[str, Any]) -> Path:
-    """Write atomically (temporary file then rename) with a comment header."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
+    """Write atomically (:mod:`.atomic`) with a comment header."""
     lines = "".join(f"# {h}\n" for h in header.splitlines())
-    tmp.write_text(lines + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=1000))
-    tmp.replace(path)
-    return path
+    return write_text_atomic(path, lines + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=1000))
 
 
 def pair_camera_infos(left: Camera, right: Camera, rect: StereoRectification, name: str = "narrow_stereo"
@@ -98,7 +88,7 @@ class StereoData:
     rectification: StereoRectification
 
     def static_transform(self) -> str:
-        return static_transform_line(self.rig.inverse(), self.left_frame, self.right_frame)
+        return static_transform_command(self.rig.inverse(), self.left_frame, self.right_frame)
 
 
 def write_stereo_yaml(path: str | Path, d: StereoData) -> Path:
@@ -183,7 +173,7 @@ def write_rig_yaml(path: str | Path, cameras: list[RigCameraData], shots_used: i
                         "translation": _v(c.pose.translation), "quaternion_xyzw": _v(c.pose.quat),
                         "sigma_rotation_deg": _v(c.sigma_rotation_deg),
                         "sigma_translation_mm": _v(c.sigma_translation_mm),
-                        "static_transform_publisher": static_transform_line(c.pose, ref.frame, c.frame)}
+                        "static_transform_publisher": static_transform_command(c.pose, ref.frame, c.frame)}
                        for c in cameras]}
     header = (f"Camera rig: each camera's pose in {ref.name}'s optical frame (p_{ref.name} = R p_camera + t, metres;\n"
               "tf parent the reference frame), sigma per axis about the reference camera's axes (deg, mm).")

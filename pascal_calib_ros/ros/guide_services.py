@@ -25,7 +25,6 @@ from ..io.calibration_files import read_calibration_file
 from ..io.next_yaml import Suggestions
 from ..modes import HandEyeMode
 from ..session.answer import Answer
-from ..session.arm_session import MOVING, NO_POSE
 from ..session.guide_overlay import draw_guide
 from ..session.guided_live import GuidedLive, GuideView
 from ..workflows.suggest import SuggestOptions, WarmArmSuggestions, suggest_for_person
@@ -134,7 +133,7 @@ class NodeGuide:
             return ""
         with self.node.session.lock:
             why = self.node.session.collector.last_rejection
-        return "" if not why or why.startswith((MOVING, NO_POSE)) else why
+        return why.message if why is not None and why.kind.is_the_view else ""
 
     # -- the person guide's hooks (the detector thread) ------------------------------------
     def examine(self, det: Detection) -> Answer | None:
@@ -234,7 +233,7 @@ class NodeGuide:
         if self._offered is None or refused <= self._offered_at[0] or n_views != self._offered_at[1]:
             return ""
         with self.node.session.lock:
-            why = self.node.session.collector.last_rejection or "refused"
+            why = str(self.node.session.collector.last_rejection or "refused")
         p, self._offered = self._offered, None
         self.avoid.append(p)
         self.suggest_refused = (f"the view at the last suggestion (centre at ({p.pixel[0]:.0f}, {p.pixel[1]:.0f}) px, "

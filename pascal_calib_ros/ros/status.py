@@ -19,7 +19,7 @@ def status_message(node: CalibrationNode) -> DiagnosticArray:
     with s.lock:
         col = s.collector
         cov, n, ready = col.coverage(), len(col.views), col.ready
-        rejected, last_rej = dict(col.rejected), col.last_rejection
+        rejected, last_rej = dict(col.rejected), str(col.last_rejection or "")
         with_pose = sum(p is not None for p in col.robot_poses)
     result = node.result
     _, session_dropped = node.session_frames()

@@ -40,6 +40,7 @@ from ..detect.detection import Detection
 from ..geometry.conic import ellipses_from_conics
 from ..geometry.transform import Transform, interpolate
 from .answer import Answer
+from .rejection import Rejection, RejectionKind
 
 ROBOT_STILL_MM = 0.1  # the robot moved if its pose changed by more than this between two frames
 ROBOT_STILL_DEG = 0.01
@@ -267,13 +268,25 @@ class Verdict:
     """What an examined frame may be used for."""
 
     usable: bool  # detected, still, and (with robot poses) a pose at its stamp: may be stored
-    reason: str = ""  # why not (the detection's reason, "moving (...)", "no robot pose (...)")
+    rejection: Rejection | None = None  # why not (the detection's reason, "moving (...)", "no robot pose (...)")
     robot_pose: Transform | None = None
     robot_still: bool | None = None  # None: unknown (no robot poses or no pose at a stamp)
 
     @property
+    def reason(self) -> str:
+        """The refusal's message ("" when usable)."""
+        return "" if self.rejection is None else self.rejection.message
+
+    @property
+    def why(self) -> Rejection:
+        """The refusal of a frame that is not usable."""
+        if self.rejection is None:
+            raise ValueError("a usable frame has no rejection")
+        return self.rejection
+
+    @property
     def moving(self) -> bool:
-        return self.reason.startswith(MOVING)
+        return self.rejection is not None and self.rejection.kind is RejectionKind.MOVING
 
 
 @dataclass
@@ -285,6 +298,17 @@ class StillnessGate:
     robot_still_deg: float = ROBOT_STILL_DEG
     prev: Detection | None = None
     prev_stamp_ns: int | None = None
+
+    def _target_motion(self, prev: Detection | None, det: Detection) -> str:
+        """Why the target counts as moving since ``prev`` ("" if it stood still)."""
+        if prev is None:
+            return f"{MOVING} (first frame: nothing to compare with)"
+        motion = feature_motion_px(prev, det) if prev.ok else None
+        if motion is None:
+            return f"{MOVING} (the previous frame had no matching target features)"
+        if motion >= self.max_motion_px:
+            return f"{MOVING} (target moved {motion:.2f} px between frames; max_motion_px {self.max_motion_px:g})"
+        return ""
 
     def examine(self, det: Detection, stamp_ns: int, poses: PoseBuffer | None, max_age_s: float) -> Verdict:
         prev, prev_stamp = self.prev, self.prev_stamp_ns
@@ -298,25 +322,17 @@ class StillnessGate:
                 if not robot_still:
                     robot_note = f"{MOVING} (robot moved {moved[0]:.2f} mm, {moved[1]:.3f} deg between frames)"
         if not det.ok:
-            return Verdict(False, det.reason, robot_still=robot_still)
+            return Verdict(False, Rejection(RejectionKind.TARGET, det.reason), robot_still=robot_still)
         if self.max_motion_px > 0:
-            if robot_note:
-                return Verdict(False, robot_note, robot_still=robot_still)
-            if prev is None:
-                return Verdict(False, f"{MOVING} (first frame: nothing to compare with)", robot_still=robot_still)
-            motion = feature_motion_px(prev, det) if prev.ok else None
-            if motion is None:
-                return Verdict(False, f"{MOVING} (the previous frame had no matching target features)",
-                               robot_still=robot_still)
-            if motion >= self.max_motion_px:
-                return Verdict(False, f"{MOVING} (target moved {motion:.2f} px between frames; max_motion_px "
-                                      f"{self.max_motion_px:g})", robot_still=robot_still)
+            moving = self._target_motion(prev, det) if not robot_note else robot_note
+            if moving:
+                return Verdict(False, Rejection(RejectionKind.MOVING, moving), robot_still=robot_still)
         pose: Transform | None = None
         if poses is not None:
             pose, why = poses.lookup(stamp_ns, max_age_s)
             if pose is None:
-                return Verdict(False, why, robot_still=robot_still)
-        return Verdict(True, "", pose, robot_still)
+                return Verdict(False, Rejection(RejectionKind.NO_POSE, why), robot_still=robot_still)
+        return Verdict(True, None, pose, robot_still)
 
 
 # -- captures -----------------------------------------------------------------------------------
@@ -340,7 +356,7 @@ def capture_is_final(verdict: Verdict, with_poses: bool) -> bool:
         return True
     if verdict.moving:
         return False
-    if verdict.reason.startswith(NO_POSE):
+    if verdict.rejection is not None and verdict.rejection.kind is RejectionKind.NO_POSE:
         return True
     return not with_poses or verdict.robot_still is True
 

@@ -24,6 +24,7 @@ from ..geometry.conic import ellipses_from_conics
 from ..geometry.transform import Transform
 from ..targets import Target
 from .answer import Answer
+from .rejection import Rejection, RejectionKind
 
 AXES = ("x", "y", "size", "skew")
 SPANS = {"x": 0.6, "y": 0.6, "size": 0.25, "skew": 0.3}
@@ -83,36 +84,38 @@ class ViewCollector:
     params: list[np.ndarray] = field(default_factory=list)
     robot_poses: list[Transform | None] = field(default_factory=list)  # T_base_tool per view (or None)
     rejected: Counter[str] = field(default_factory=Counter)
-    last_rejection: str = ""
+    last_rejection: Rejection | None = None
     board_points: np.ndarray | None = None  # the target's board corners on the sheet (a board-only target)
 
     def offer(self, det: Detection, robot_pose: Transform | None = None, force: bool = False) -> Answer:
         """Store the view if usable and new enough (``force``: whatever it resembles) with its
         robot pose; returns (accepted, reason)."""
         if not det.ok:
-            return self.reject(det.reason)
+            return self.reject(Rejection(RejectionKind.TARGET, det.reason))
         if self.views and (det.width, det.height) != (self.views[0].width, self.views[0].height):
-            return self.reject(f"image size {det.width}x{det.height} differs from the session's "
-                                f"{self.views[0].width}x{self.views[0].height}")
+            return self.reject(Rejection(RejectionKind.IMAGE_SIZE, f"image size {det.width}x{det.height} differs from "
+                                         f"the session's {self.views[0].width}x{self.views[0].height}"))
         p = view_parameters(det, self.board_points)
         if p is None:
-            return self.reject(NO_PLACE)
+            return self.reject(Rejection(RejectionKind.NO_PLACE, NO_PLACE))
         if self.params and not force:
             d = min(float(np.sum(np.abs(p - q))) for q in self.params)
             if d < self.min_distance:
-                return self.reject("too similar to a stored view (move or tilt the target)")
+                return self.reject(Rejection(RejectionKind.TOO_SIMILAR,
+                                             "too similar to a stored view (move or tilt the target)"))
         if len(self.views) >= self.max_views:
-            return self.reject(f"view store full ({self.max_views} views); calibrate or reset")
+            return self.reject(Rejection(RejectionKind.STORE_FULL,
+                                         f"view store full ({self.max_views} views); calibrate or reset"))
         self.views.append(det)
         self.params.append(p)
         self.robot_poses.append(robot_pose)
         return Answer(True, "accepted")
 
-    def reject(self, reason: str) -> Answer:
-        key = reason.split("(")[0].strip()  # group by kind, without the per-frame figures
-        self.rejected[key] += 1
-        self.last_rejection = reason
-        return Answer(False, reason)
+    def reject(self, why: Rejection) -> Answer:
+        """Count a refusal (by its message without the per-frame figures) and answer it."""
+        self.rejected[why.key] += 1
+        self.last_rejection = why
+        return Answer(False, why.message)
 
     def coverage(self) -> dict[str, float]:
         if not self.params:
@@ -131,5 +134,5 @@ class ViewCollector:
         self.params.clear()
         self.robot_poses.clear()
         self.rejected.clear()
-        self.last_rejection = ""
+        self.last_rejection = None
         return n

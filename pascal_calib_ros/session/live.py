@@ -23,6 +23,7 @@ from .answer import Answer
 from .arm_session import MOVING, CaptureSlot, PoseBuffer, StillnessGate, capture_is_final, stored_message
 from .collector import ViewCollector
 from .overlay import draw_live_overlay
+from .rejection import Rejection, RejectionKind
 
 Persist = Callable[[Detection, "Transform | None"], str]  # writes a stored view; says what it did
 NOT_WRITTEN = "not written"  # how a failed ``persist`` answer starts
@@ -85,7 +86,7 @@ class LiveSession:
     def bad_frame(self, reason: str) -> None:
         """Count a frame that could not be converted."""
         with self.lock:
-            self.collector.reject(f"bad frame: {reason}")
+            self.collector.reject(Rejection(RejectionKind.BAD_FRAME, f"bad frame: {reason}"))
 
     def examine(self, det: Detection, stamp_ns: int, poses: PoseBuffer | None, pose_max_age: float,
                 received_at: float, drawing: bool, guide: Answer | None = None,
@@ -108,12 +109,12 @@ class LiveSession:
                     if verdict.usable:
                         accepted, why = col.offer(det, verdict.robot_pose, force=True)
                     else:
-                        accepted, why = col.reject(verdict.reason)
+                        accepted, why = col.reject(verdict.why)
                     answer = Answer(accepted, stored_message(len(col.views) - 1, det, verdict.robot_pose)
                                     if accepted else f"nothing stored: {why}")
                     why = answer.message
                 else:
-                    col.reject(verdict.reason)
+                    col.reject(verdict.why)
                     self.captures.note(capture, verdict.reason)
             elif self.collect == "auto" and guide is not None:
                 if verdict.usable and guide.ok:
@@ -122,13 +123,13 @@ class LiveSession:
                 elif verdict.usable:
                     why = f"ok; not stored: {guide.message}"
                 else:
-                    col.reject(verdict.reason)
+                    col.reject(verdict.why)
             elif self.collect == "auto":
                 if verdict.usable:
                     accepted, why = col.offer(det, verdict.robot_pose)
                     why = f"view {len(col.views) - 1} stored" if accepted else f"ok; not stored: {why}"
                 else:
-                    col.reject(verdict.reason)
+                    col.reject(verdict.why)
             elif verdict.usable:
                 why = "ok; ~/capture stores a view (collect:=on_capture)"
             if accepted:  # only stored views cost a hull

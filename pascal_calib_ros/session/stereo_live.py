@@ -30,11 +30,7 @@ from .arm_session import MOVING, StillnessGate
 from .collector import NO_PLACE, READY_COVERAGE, ViewCollector, view_parameters
 from .frame_pairing import SIDES
 from .overlay import draw_live_overlay
-
-
-def _key(reason: str) -> str:
-    """A rejection reason without its per-frame figures (how the collector counts them)."""
-    return reason.split("(")[0].strip()
+from .rejection import Rejection, RejectionKind, rejection_key
 
 
 @dataclass
@@ -63,7 +59,7 @@ class StereoCollector:
         return self.both >= self.min_views and min(min(c.values()) for c in cov) >= READY_COVERAGE
 
     def reject(self, reason: str) -> Answer:
-        self.rejected[_key(reason)] += 1
+        self.rejected[rejection_key(reason)] += 1
         self.last_rejection = reason
         return Answer(False, reason)
 
@@ -71,26 +67,29 @@ class StereoCollector:
         params = self.cameras[c].params
         return not params or min(float(np.sum(np.abs(p - q))) for q in params) >= self.min_distance
 
-    def offer(self, dets: tuple[Detection, Detection], reasons: list[str]) -> tuple[bool, str, list[str]]:
-        """Store the shot ``dets`` (left, right) if it adds diversity; ``reasons[c]`` is empty when
+    def offer(self, dets: tuple[Detection, Detection], reasons: list[Rejection | None]
+              ) -> tuple[bool, str, list[Rejection | None]]:
+        """Store the shot ``dets`` (left, right) if it adds diversity; ``reasons[c]`` is None when
         camera c's view is usable, else why not. Returns (stored, the shot's verdict, each
-        camera's reason it was not used (empty: used or usable))."""
+        camera's reason it was not used (None: used or usable))."""
         reasons = list(reasons)
         params: list[np.ndarray | None] = [None, None]
         for c, det in enumerate(dets):
             cam = self.cameras[c]
-            if not reasons[c] and cam.views and (det.width, det.height) != (cam.views[0].width, cam.views[0].height):
-                reasons[c] = (f"image size {det.width}x{det.height} differs from the session's "
-                              f"{cam.views[0].width}x{cam.views[0].height}")
-            if not reasons[c]:
+            if reasons[c] is None and cam.views and (det.width, det.height) != (cam.views[0].width,
+                                                                                 cam.views[0].height):
+                reasons[c] = Rejection(RejectionKind.IMAGE_SIZE, f"image size {det.width}x{det.height} differs from "
+                                       f"the session's {cam.views[0].width}x{cam.views[0].height}")
+            if reasons[c] is None:
                 params[c] = view_parameters(det, cam.board_points)
                 if params[c] is None:
-                    reasons[c] = NO_PLACE
-            if reasons[c]:
-                cam.reject(reasons[c])
+                    reasons[c] = Rejection(RejectionKind.NO_PLACE, NO_PLACE)
+            why = reasons[c]
+            if why is not None:
+                cam.reject(why)
         usable = [p is not None for p in params]
         if not any(usable):
-            if _key(reasons[0]) == _key(reasons[1]):
+            if rejection_key(str(reasons[0])) == rejection_key(str(reasons[1])):
                 return (*self.reject(f"both cameras: {reasons[0]}"), reasons)
             return (*self.reject(f"neither camera has a usable view (left: {reasons[0]}; right: {reasons[1]})"),
                     reasons)
@@ -102,7 +101,7 @@ class StereoCollector:
         shot = dets[0].name or dets[1].name
         for c, (det, p) in enumerate(zip(dets, params, strict=True)):
             if p is None:  # kept as a rejected view: the shot list stays aligned, its reason shown
-                kept.append(Detection(det.width, det.height, name=det.name or shot, reason=reasons[c]))
+                kept.append(Detection(det.width, det.height, name=det.name or shot, reason=str(reasons[c])))
                 continue
             cam = self.cameras[c]
             cam.views.append(det)
@@ -182,29 +181,29 @@ class StereoSession:
     def bad_frame(self, side: int, reason: str) -> None:
         """Count a frame that could not be converted."""
         with self.lock:
-            self.collector.cameras[side].reject(f"bad frame: {reason}")
+            self.collector.cameras[side].reject(Rejection(RejectionKind.BAD_FRAME, f"bad frame: {reason}"))
 
     def examine(self, dets: tuple[Detection, Detection], stamps_ns: tuple[int, int], drawing: bool) -> PairOutcome:
         """Apply the session's policy to one pair's detections (module docstring)."""
         reasons = []
         for c in (0, 1):
             verdict = self.gates[c].examine(dets[c], stamps_ns[c], None, 0.0)
-            reasons.append("" if verdict.usable else verdict.reason)
+            reasons.append(None if verdict.usable else verdict.why)
         with self.lock:
             col = self.collector
             stored, why, reasons = col.offer(dets, reasons)
             if stored:
                 for c in (0, 1):
-                    if not reasons[c]:
+                    if reasons[c] is None:
                         self.footprints[c].extend(view_hulls([feature_points(dets[c])]))
             lines, oks = [], []
             for c in (0, 1):
-                usable = not reasons[c]
+                usable = reasons[c] is None
                 oks.append(usable)
                 if stored:
                     lines.append(why if usable else f"not used: {reasons[c]}")
                 else:
-                    lines.append(f"ok; not stored: {why}" if usable else reasons[c])
+                    lines.append(f"ok; not stored: {why}" if usable else str(reasons[c]))
             overlay = (([*self.footprints[0]], [*self.footprints[1]]), col.coverage(), col.min_views) \
                 if drawing else None
             return PairOutcome(stored=stored, why=why, camera_lines=(lines[0], lines[1]), camera_ok=(oks[0], oks[1]),

@@ -9,7 +9,6 @@ from .hand_eye import (
     hand_eye_doubts,
     hand_eye_frames,
     run_hand_eye,
-    static_transform_command,
 )
 from .intrinsic import IntrinsicOutcome, run_intrinsic
 from .outputs import (
@@ -23,5 +22,5 @@ from .outputs import (
 
 __all__ = ["HandEyeFrames", "HandEyeOutcome", "IntrinsicOutcome", "ReportRequest", "ResultPaths", "WrittenFiles",
            "calibration_file_path", "camera_info_data", "detect_files", "detect_images", "detection_params",
-           "hand_eye_doubts", "hand_eye_frames", "run_hand_eye", "run_intrinsic", "static_transform_command",
+           "hand_eye_doubts", "hand_eye_frames", "run_hand_eye", "run_intrinsic",
            "write_result_files"]

@@ -41,7 +41,7 @@ from ..geometry.lens import DISTORTION_CHOICES
 from ..io.calibration_files import CalibrationFile, read_calibration_file
 from ..io.calibration_json import CalibrationRecord, write_calibration_json
 from ..io.format_error import CalibrationFileError
-from ..io.hand_eye_export import static_transform_line, urdf_joint_text
+from ..io.hand_eye_export import static_transform_text, urdf_joint_text
 from ..io.hand_eye_yaml import PosesYamlError, read_hand_eye_yaml
 from ..io.kalibr_camchain import KalibrCamera, kalibr_distortion, write_kalibr_camchain
 from ..io.mrcal_model import MrcalModel, mrcal_model_of_camera, write_mrcal_model
@@ -156,7 +156,7 @@ def _export_hand_eye(req: ExportRequest) -> ExportOutcome:
         doc, X = read_hand_eye_yaml(req.source)
     except PosesYamlError as e:
         raise ExportError(f"{e} (--to {req.to} exports a HAND_EYE.yaml)") from None
-    text = urdf_joint_text(doc, X) if req.to == "urdf" else static_transform_line(doc, X)
+    text = urdf_joint_text(doc, X) if req.to == "urdf" else static_transform_text(doc, X)
     req.output.parent.mkdir(parents=True, exist_ok=True)
     req.output.write_text(text)
     return ExportOutcome(req.output, None, [text.rstrip(), f"wrote {req.output}"])

@@ -120,14 +120,6 @@ def hand_eye_doubts(he: HandEyeResult) -> list[str]:
     return problems
 
 
-def static_transform_command(X: Transform, parent: str, child: str) -> str:
-    """The ``static_transform_publisher`` line that publishes X (child = camera in parent)."""
-    t, q = X.translation, X.quat
-    return ("ros2 run tf2_ros static_transform_publisher "
-            f"--x {t[0]:.6f} --y {t[1]:.6f} --z {t[2]:.6f} --qx {q[0]:.7f} --qy {q[1]:.7f} --qz {q[2]:.7f} "
-            f"--qw {q[3]:.7f} --frame-id {parent} --child-frame-id {child}")
-
-
 def hand_eye_line(he: HandEyeResult, parent: str, camera_frame: str, n_views: int, yaml_path: str) -> str:
     """The node's answer for the transform: 'hand_eye <mode>: <parent> -> <camera> t=[..] m std=[..]
     mm (arm accuracy share [..] mm) q=[..] rot_std=[..] deg views_used=N/M rms= robot_error= yaml='."""

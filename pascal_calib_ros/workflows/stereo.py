@@ -38,7 +38,7 @@ from ..io.stereo_yaml import (
     RigCameraData,
     StereoData,
     pair_camera_infos,
-    static_transform_line,
+    static_transform_command,
     write_pair_yamls,
     write_rig_yaml,
     write_stereo_yaml,
@@ -273,7 +273,7 @@ def rig_from_detections(dets: list[list[Detection]], target: Target, names: list
         t = rig.pose_in_reference(c).translation
         lines.append(f"{names[c]} in {names[0]}'s frame: t = [{', '.join(f'{v:.6f}' for v in t)}] m "
                      f"(+- [{', '.join(f'{v:.4f}' for v in st)}] mm), +- [{', '.join(f'{v:.5f}' for v in sr)}] deg")
-        lines.append("  " + static_transform_line(rig.pose_in_reference(c), frames[0], frames[c]))
+        lines.append("  " + static_transform_command(rig.pose_in_reference(c), frames[0], frames[c]))
     lines.append("wrote " + ", ".join(str(f) for f in files))
     return RigOutcome(rig, files, lines)
 

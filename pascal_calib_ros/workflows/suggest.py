@@ -139,8 +139,8 @@ def arm_suggestions(dets: list[Detection], robot: list[Transform | None], target
         kept = [a for a, k in zip(kept, new, strict=True) if k]
     kept = kept[:opt.n]
     done = sigma <= opt.goal_sigma_px and s.rotation_deg <= opt.goal_deg and s.translation_mm <= opt.goal_mm
-    arm = ArmProgress(opt.mode, frames[0], frames[1], s.rotation_deg, s.translation_mm, opt.goal_deg, opt.goal_mm,
-                      opt.reach, opt.max_turn)
+    arm = ArmProgress(opt.mode, frames[0], frames[1], sigma_deg=s.rotation_deg, sigma_mm=s.translation_mm,
+                      goal_deg=opt.goal_deg, goal_mm=opt.goal_mm, reach_m=opt.reach, max_turn_deg=opt.max_turn)
     sugg = tuple(_suggestion(a.view, ToolSuggestion(a.tool, a.predicted_rotation_deg, a.predicted_translation_mm))
                  for a in kept)
     return Suggestions(bool(done), sigma, opt.goal_sigma_px, intrinsic.distance_now, len(used), sugg, arm,

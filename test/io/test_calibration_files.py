@@ -22,7 +22,7 @@ from pascal_calib_ros.io.calibration_json import (
 )
 from pascal_calib_ros.io.camera_yaml import CameraInfoData, write_camera_yaml
 from pascal_calib_ros.io.format_error import CalibrationFileError
-from pascal_calib_ros.io.hand_eye_export import static_transform_line, transform_of_urdf_origin, urdf_joint_text
+from pascal_calib_ros.io.hand_eye_export import static_transform_text, transform_of_urdf_origin, urdf_joint_text
 from pascal_calib_ros.io.kalibr_camchain import KalibrCamera, write_kalibr_camchain
 from pascal_calib_ros.io.mrcal_model import mrcal_model_of_camera, write_mrcal_model
 from pascal_calib_ros.io.opencv_storage import write_opencv_storage
@@ -102,8 +102,8 @@ def test_urdf_joint_places_the_camera_as_X() -> None:
     assert np.abs(T.apply(p) - X.apply(p)).max() < 1e-8
 
 
-def test_static_transform_line_has_jazzys_named_arguments() -> None:
-    args = shlex.split(static_transform_line(DOC, X))
+def test_static_transform_text_has_jazzys_named_arguments() -> None:
+    args = shlex.split(static_transform_text(DOC, X))
     assert args[:4] == ["ros2", "run", "tf2_ros", "static_transform_publisher"]
     named = dict(zip(args[4::2], args[5::2], strict=True))
     assert named["--frame-id"] == "tool0" and named["--child-frame-id"] == "cam_optical"

@@ -27,7 +27,8 @@ def _arm_suggestions() -> Suggestions:
     view = Transform.from_rotvec([0.3, -0.2, 0.1], [0.01, -0.02, 0.45])
     tool = ToolSuggestion(Transform.from_rotvec([3.0, 0.1, 0.2], [0.5, 0.1, 0.3]), 0.012345678, 0.1234567)
     first = Suggestion(view, Placement((321.04, 240.96), 0.45004, 35.04, 120.0, 12.5), 0.21234567, tool)
-    arm = ArmProgress(HandEyeMode.EYE_TO_HAND, "base_link", "tool0", 0.0234567, 0.2345678, 0.01, 0.1, 0.3, 120.0)
+    arm = ArmProgress(HandEyeMode.EYE_TO_HAND, "base_link", "tool0", sigma_deg=0.0234567, sigma_mm=0.2345678,
+                      goal_deg=0.01, goal_mm=0.1, reach_m=0.3, max_turn_deg=120.0)
     return Suggestions(False, 0.5234567, 0.1, 0.4512345, 7, (first,), arm,
                        (Placement((100.0, 80.0), 0.3, 45.0, 270.0, 0.0),))
 

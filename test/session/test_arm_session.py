@@ -23,6 +23,7 @@ from pascal_calib_ros.session.arm_session import (
     view_placement,
 )
 from pascal_calib_ros.session.collector import ViewCollector
+from pascal_calib_ros.session.rejection import Rejection, RejectionKind
 from pascal_calib_ros.sim.render import Pose, SensorModel, render_view
 from pascal_calib_ros.sim.session import SessionSpec
 from pascal_calib_ros.targets import Target, resolve_target
@@ -234,13 +235,14 @@ def test_robot_motion_between_frames_refuses_them(frames: dict[str, Detection]) 
 
 def test_capture_decisions() -> None:
     assert capture_is_final(Verdict(True), True)
-    assert not capture_is_final(Verdict(False, "moving (target moved 2 px)"), True)
-    assert capture_is_final(Verdict(False, "no robot pose (none received yet)"), True)
+    assert not capture_is_final(Verdict(False, Rejection(RejectionKind.MOVING, "moving (target moved 2 px)")), True)
+    assert capture_is_final(Verdict(False, Rejection(RejectionKind.NO_POSE, "no robot pose (none received yet)")), True)
     # a failed detection decides if the robot is known to rest, or without robot poses
-    assert capture_is_final(Verdict(False, "no target found", robot_still=True), True)
-    assert not capture_is_final(Verdict(False, "too blurred", robot_still=False), True)
-    assert not capture_is_final(Verdict(False, "too blurred", robot_still=None), True)
-    assert capture_is_final(Verdict(False, "too blurred"), False)
+    target, blurred = Rejection(RejectionKind.TARGET, "no target found"), Rejection(RejectionKind.TARGET, "too blurred")
+    assert capture_is_final(Verdict(False, target, robot_still=True), True)
+    assert not capture_is_final(Verdict(False, blurred, robot_still=False), True)
+    assert not capture_is_final(Verdict(False, blurred, robot_still=None), True)
+    assert capture_is_final(Verdict(False, blurred), False)
 
 
 def test_capture_slot_bookkeeping() -> None:

@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 
 from pascal_calib_ros.geometry.transform import Transform
+from pascal_calib_ros.io.tf_command import static_transform_command
 from pascal_calib_ros.modes import HandEyeMode
 from pascal_calib_ros.workflows.hand_eye import (
     HandEyeFrames,
     hand_eye_doubts,
     hand_eye_frames,
-    static_transform_command,
 )
 
 
