@@ -1,12 +1,59 @@
 """What a calibration is worth: projection uncertainty (mrcal's), residual statistics and the
 model-bias verdict, cross-validation of two halves, the projection difference of two cameras."""
 
-from .assessment import Assessment, assess, model_bias_of
-from .compare import CompareError, ProjectionDiff, projection_difference
-from .cross_validation import CrossValidation, cross_validate
-from .residual_stats import ModelBias
-from .uncertainty import ProjectionUncertainty, projection_uncertainty, projection_uncertainty_of
+from .arm_guidance import DISTINCT_ROLL_DEG, ArmGoals, TrustRegion, arm_model, suggest_arm_views
+from .assessment import Assessment, assess, model_bias_of, residual_samples_of
+from .candidates import (
+    Feasibility,
+    Placement,
+    bootstrap_placements,
+    default_feasibility,
+    distance_for_size,
+    feasibility_problem,
+    feature_centre,
+    outline_points,
+    place,
+)
+from .compare import CompareError, ProjectionDiff, projection_difference, region_from_report
+from .cross_validation import CrossValidation, cross_validate, difference_share
+from .epipolar import epipolar_rms, epipolar_samples
+from .guidance import Linearisation, ViewPredictor
+from .refit import DEFAULT_MAX_ERROR_PX, RefitError, RefitResult, refit_camera
+from .refit_splined import CHOICE, refit_splined
+from .residual_stats import (
+    MIN_EFFECTIVE,
+    RADIAL_FLOOR_PX,
+    REGIONAL_FLOOR_PX,
+    ModelBias,
+    Radial,
+    Regional,
+    ResidualSamples,
+    model_bias,
+    radial,
+    regional,
+    views_per_region,
+)
+from .rig import assess_rig
+from .uncertainty import (
+    ProjectionUncertainty,
+    projection_uncertainty,
+    projection_uncertainty_of,
+    rotation_displacements,
+)
+from .verification import CHANGED, Verification, verify_calibration
+from .verify import DEFAULT_ALPHA
+from .verify_hand_eye import HandEyeReference
+from .verify_views import VerifyError
+from .view_ranking import RankedView, distinct_from_all, suggest_views
 
-__all__ = ["Assessment", "CompareError", "CrossValidation", "ModelBias", "ProjectionDiff", "ProjectionUncertainty",
-           "assess", "cross_validate", "model_bias_of", "projection_difference", "projection_uncertainty",
-           "projection_uncertainty_of"]
+__all__ = ["CHANGED", "CHOICE", "DEFAULT_ALPHA", "DEFAULT_MAX_ERROR_PX", "DISTINCT_ROLL_DEG", "MIN_EFFECTIVE",
+           "RADIAL_FLOOR_PX", "REGIONAL_FLOOR_PX", "ArmGoals", "Assessment", "CompareError", "CrossValidation",
+           "Feasibility", "HandEyeReference", "Linearisation", "ModelBias", "Placement", "ProjectionDiff",
+           "ProjectionUncertainty", "Radial", "RankedView", "RefitError", "RefitResult", "Regional", "ResidualSamples",
+           "TrustRegion", "Verification", "VerifyError", "ViewPredictor", "arm_model", "assess", "assess_rig",
+           "bootstrap_placements", "cross_validate", "default_feasibility", "difference_share", "distance_for_size",
+           "distinct_from_all", "epipolar_rms", "epipolar_samples", "feasibility_problem", "feature_centre",
+           "model_bias", "model_bias_of", "outline_points", "place", "projection_difference", "projection_uncertainty",
+           "projection_uncertainty_of", "radial", "refit_camera", "refit_splined", "region_from_report", "regional",
+           "residual_samples_of", "rotation_displacements", "suggest_arm_views", "suggest_views", "verify_calibration",
+           "views_per_region"]

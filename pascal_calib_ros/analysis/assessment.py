@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..calibrate.result import CalibrationResult
+from ..calibrate import CalibrationResult
 from .residual_stats import ModelBias, ResidualSamples, model_bias, radial, regional, residual_samples
 from .uncertainty import ProjectionUncertainty, projection_uncertainty_of
 

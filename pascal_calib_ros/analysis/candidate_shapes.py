@@ -22,9 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..detect.detection import DetectionParams
-from ..geometry.camera import Camera
-from ..geometry.conic import ellipses_from_conics, fit_conics_algebraic
+from ..detect import DetectionParams
+from ..geometry import Camera, ellipses_from_conics, fit_conics_algebraic
 from ..targets import Target
 
 POINTS = 64  # points per imaged circle (the median is weighted by the arc each stands for)

@@ -29,9 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..geometry.camera import Camera
-from ..geometry.placement import Placement
-from ..geometry.transform import Transform
+from ..geometry import Camera, Placement, Transform
 from ..targets import Target
 from .candidate_shapes import shape_shares
 

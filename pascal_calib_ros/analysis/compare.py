@@ -36,11 +36,8 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from ..errors import PascalCalibError
-from ..geometry.camera import Camera
-from ..geometry.image_field import grid_pixels, grid_shape, hulls_mask
-from ..geometry.transform import Transform
-from ..io.camera_yaml import read_camera_yaml
-from ..io.report_json import ReportJsonError, read_view_hulls
+from ..geometry import Camera, Transform, grid_pixels, grid_shape, hulls_mask
+from ..io import ReportJsonError, read_camera_yaml, read_view_hulls
 
 DEFAULT_STEP = 16.0  # px between grid points
 MIN_POINTS = 3  # fewer common grid points leave the rotation undetermined

@@ -39,10 +39,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..calibrate.options import CalibrationOptions
-from ..calibrate.pipeline import calibrate
-from ..calibrate.result import CalibrationError, CalibrationResult
-from ..detect.detection import Detection
+from ..calibrate import CalibrationError, CalibrationOptions, CalibrationResult, calibrate
+from ..detect import Detection
 from ..targets import Target
 from .assessment import assess
 from .compare import CompareError, ProjectionDiff, projection_difference

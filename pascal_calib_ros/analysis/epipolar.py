@@ -15,11 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..calibrate.rig import RigResult
-from ..detect.detection import Detection
-from ..geometry.conic import fit_conics_algebraic
-from ..geometry.rectify import StereoRectification, horizontal_tangent_rows, rectified_pixels
-from ..geometry.transform import Transform
+from ..calibrate import RigResult
+from ..detect import Detection
+from ..geometry import StereoRectification, Transform, fit_conics_algebraic, horizontal_tangent_rows, rectified_pixels
 from ..targets import Target
 
 

@@ -45,11 +45,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from ..calibrate.observations import ViewData
-from ..calibrate.problem import Problem
-from ..calibrate.refine import RefineResult
-from ..geometry.camera import Camera, project_with_jacobians
-from ..geometry.image_field import grid_pixels, grid_shape
+from ..calibrate import Problem, RefineResult, ViewData
+from ..geometry import Camera, grid_pixels, grid_shape, project_with_jacobians
 
 
 @dataclass(frozen=True)
@@ -381,7 +378,7 @@ def fit_noise_model(prob: Problem, var: np.ndarray) -> NoiseModel:
 def candidate_problem(prob: Problem, views: Sequence[ViewData]) -> Problem:
     """A problem of the same layout (free intrinsics, shape, lens, dof, offsets) over ``views``."""
     free = tuple(prob.names[i] for i in prob.free)
-    from ..calibrate.problem import SHAPE_NAMES
+    from ..calibrate import SHAPE_NAMES
 
     shape = tuple(SHAPE_NAMES[i] for i in prob.shape_idx)
     return Problem(list(views), prob.dof, free, prob.use_offsets, prob.loss_scale, shape, prob.frame, prob.lens)

@@ -32,9 +32,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..errors import PascalCalibError
-from ..geometry.camera import Camera, project_with_jacobians
-from ..geometry.image_field import grid_pixels
-from ..geometry.lens import DISTORTION_CHOICES
+from ..geometry import DISTORTION_CHOICES, Camera, grid_pixels, project_with_jacobians
 from .compare import CompareError, ProjectionDiff, projection_difference
 
 DEFAULT_MAX_ERROR_PX = 0.25  # worst projection error over the region a refit may have unless forced

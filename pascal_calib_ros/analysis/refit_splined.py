@@ -15,9 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry.camera import Camera
-from ..geometry.image_field import grid_pixels
-from ..io.mrcal_splined import SplinedModel, design_matrix, splined_camera, stereographic
+from ..geometry import Camera, grid_pixels
+from ..io import SplinedModel, design_matrix, splined_camera, stereographic
 from .compare import CompareError, projection_difference
 from .refit import DEFAULT_MAX_ERROR_PX, FIT_STEP_DIVISOR, RefitError, RefitResult, measure_step, worst_with_boundary
 

@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..calibrate.rig import RigResult
-from ..geometry.camera import Camera
+from ..calibrate import RigResult
+from ..geometry import Camera
 from .assessment import Assessment, model_bias_of
 from .uncertainty import ProjectionUncertainty, projection_uncertainty
 

@@ -19,11 +19,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..geometry.image_field import grid_pixels, grid_shape
+from ..geometry import grid_pixels, grid_shape
 
 if TYPE_CHECKING:
-    from ..calibrate.refine import RefineResult
-    from ..geometry.camera import Camera
+    from ..calibrate import RefineResult
+    from ..geometry import Camera
 
 
 def _jacobian(f: Callable[[np.ndarray], np.ndarray], x: np.ndarray, columns: np.ndarray) -> np.ndarray:

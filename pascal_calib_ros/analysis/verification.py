@@ -3,7 +3,7 @@ with its numbers and its text (:mod:`.verify`, :mod:`.verify_hand_eye`).
 
 The one function both the CLI (``pascal-calib verify``) and the node (``~/verify``) call:
 :func:`verify_calibration` takes the detections of the fresh views, the target, the calibration
-under test (:class:`~.verify.Reference`) and, for a hand-eye check, the robot pose of every
+under test (:class:`~..io.calibration_json.CalibrationRecord`) and, for a hand-eye check, the robot pose of every
 detection and the stored hand-eye result; it returns a :class:`Verification` whose
 :meth:`~Verification.text` is what a person reads and :meth:`~Verification.as_json` every number.
 """
@@ -17,11 +17,12 @@ from typing import Any
 
 import numpy as np
 
-from ..calibrate.options import CalibrationOptions
-from ..detect.detection import Detection
-from ..geometry.transform import Transform
+from ..calibrate import CalibrationOptions
+from ..detect import Detection
+from ..geometry import Transform
+from ..io import CalibrationRecord
 from ..targets import Target
-from .verify import DEFAULT_ALPHA, IntrinsicCheck, Reference, check_intrinsics
+from .verify import DEFAULT_ALPHA, IntrinsicCheck, check_intrinsics
 from .verify_hand_eye import HandEyeCheck, HandEyeReference, check_hand_eye
 from .verify_views import FreshViews, VerifyError, fit_fresh_views
 
@@ -54,7 +55,7 @@ class Verification:
         return verification_json(self)
 
 
-def verify_calibration(dets: Sequence[Detection], target: Target, reference: Reference,
+def verify_calibration(dets: Sequence[Detection], target: Target, reference: CalibrationRecord,
                        robot_poses: Sequence[Transform | None] | None = None,
                        hand_eye: HandEyeReference | None = None, alpha: float = DEFAULT_ALPHA,
                        options: CalibrationOptions = CalibrationOptions()  # noqa: B008 (frozen dataclass)

@@ -35,31 +35,15 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import chi2, norm
 
-from ..calibrate.problem import intrinsic_names
-from ..calibrate.refine import RefineResult, refine
-from ..geometry.camera import Camera, project_with_jacobians
-from ..geometry.lens import DISTORTION_CHOICES
+from ..calibrate import RefineResult, intrinsic_names, refine
+from ..geometry import DISTORTION_CHOICES, Camera, project_with_jacobians
+from ..io import CalibrationRecord
 from .compare import CompareError, ProjectionDiff, projection_difference
 from .uncertainty import rotation_displacements
 from .verify_views import FreshViews
 
 DEFAULT_ALPHA = 0.001  # the chance of a false "changed" with honest sigmas (Bonferroni over the groups)
 GROUPS = (("focal length", ("fx", "fy")), ("principal point", ("cx", "cy")), ("skew", ("skew",)))
-
-
-@dataclass(frozen=True)
-class Reference:
-    """The calibration under test: the camera, which intrinsics it estimated (a ``--distortion``
-    choice; "" = all of its model's) and, where known, their covariance."""
-
-    camera: Camera
-    distortion_choice: str = ""
-    parameters: tuple[str, ...] = ()
-    covariance: np.ndarray | None = None
-
-    @property
-    def choice(self) -> str:
-        return self.distortion_choice or self.camera.model
 
 
 @dataclass(frozen=True)
@@ -122,7 +106,7 @@ class IntrinsicCheck:
         return out
 
 
-def _aligned_stored_covariance(ref: Reference, names: tuple[str, ...]) -> np.ndarray:
+def _aligned_stored_covariance(ref: CalibrationRecord, names: tuple[str, ...]) -> np.ndarray:
     """The stored covariance on ``names`` (rows and columns of names it lacks are zero)."""
     S = np.zeros((len(names), len(names)))
     if ref.covariance is None:
@@ -176,8 +160,8 @@ def expected_shift_rms(stored: Camera, names: tuple[str, ...], cov: np.ndarray, 
     return float(np.sqrt(np.mean(np.maximum(var, 0.0))))
 
 
-def check_intrinsics(fresh_views: FreshViews, ref: Reference, alpha: float = DEFAULT_ALPHA, extra_groups: int = 0
-                     ) -> IntrinsicCheck:
+def check_intrinsics(fresh_views: FreshViews, ref: CalibrationRecord, alpha: float = DEFAULT_ALPHA,
+                     extra_groups: int = 0) -> IntrinsicCheck:
     """Free the reference's estimated intrinsics on the fresh views (held-fixed poses as the start)
     and test the shift (module docstring); ``extra_groups``: tests made elsewhere that share alpha."""
     cam = ref.camera

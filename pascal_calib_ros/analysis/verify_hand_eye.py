@@ -26,14 +26,17 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
-from ..calibrate.handeye import HandEyeOptions, chain_pose
-from ..calibrate.handeye.chain_refinement import ChainStart, refine_chain
-from ..calibrate.handeye.closed_form import complete_ring_poses
-from ..calibrate.handeye.labelling import relabelled, target_symmetries
-from ..calibrate.options import CalibrationOptions
-from ..calibrate.result import CalibrationResult
-from ..geometry.camera import Camera
-from ..geometry.transform import Transform
+from ..calibrate import CalibrationOptions, CalibrationResult
+from ..calibrate.handeye import (
+    ChainStart,
+    HandEyeOptions,
+    chain_pose,
+    complete_ring_poses,
+    refine_chain,
+    relabelled,
+    target_symmetries,
+)
+from ..geometry import Camera, Transform
 from ..modes import HandEyeMode
 from ..targets import Target
 from .verify_views import FreshViews, VerifyError

@@ -15,17 +15,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..calibrate.handeye.view_poses import camera_pose
-from ..calibrate.initial import PlanePose, pose_to_params
-from ..calibrate.lm import levenberg_marquardt
-from ..calibrate.observations import ViewData, observations
-from ..calibrate.options import CalibrationOptions
-from ..calibrate.problem import Problem
-from ..detect.detection import Detection
+from ..calibrate import (
+    CalibrationOptions,
+    PlanePose,
+    Problem,
+    ViewData,
+    levenberg_marquardt,
+    observations,
+    pose_to_params,
+)
+from ..calibrate.handeye import camera_pose
+from ..detect import Detection
 from ..errors import PascalCalibError
-from ..geometry.camera import Camera
-from ..geometry.circular import CircularPointError
-from ..geometry.transform import Transform
+from ..geometry import Camera, CircularPointError, Transform
 from ..targets import Target
 
 MIN_VIEWS = 3

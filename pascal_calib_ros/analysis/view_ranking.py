@@ -14,11 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..calibrate.initial import PlanePose, pose_to_params
-from ..calibrate.options import CalibrationOptions
-from ..calibrate.refine import RefineResult
-from ..geometry.camera import Camera
-from ..geometry.transform import Transform
+from ..calibrate import CalibrationOptions, PlanePose, RefineResult, pose_to_params
+from ..geometry import Camera, Transform
 from ..targets import Target
 from .candidates import (
     CandidateGrid,

@@ -18,10 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..calibrate.observations import ViewData
-from ..calibrate.options import CalibrationOptions
-from ..detect.detection import DEFAULT_PARAMS
-from ..geometry.camera import Camera
+from ..calibrate import CalibrationOptions, ViewData
+from ..detect import DEFAULT_PARAMS
+from ..geometry import Camera
 from ..targets import Target
 
 # angles per circle on which the image arc length is measured: 64 chords of an imaged circle give its

@@ -2,11 +2,19 @@
 points, grid homographies, OpenCV's Zhang), the joint refinement with outlier rejection, the
 pipeline that chains them (:func:`calibrate`), hand-eye (:mod:`.handeye`). No I/O, no threads."""
 
-from .options import METHODS, CalibrationOptions
-from .pipeline import calibrate
-from .problem import DISTORTION_MODELS, SHAPE_CHOICES, SHAPE_NAMES
-from .refine import RefineResult, refine
+from .initial import PlanePose, pose_from_view, pose_to_params
+from .lm import levenberg_marquardt
+from .observations import ViewData, observations
+from .options import METHODS, MIN_VIEWS, CalibrationOptions
+from .pipeline import calibrate, target_shape_frame
+from .problem import DISTORTION_MODELS, SHAPE_CHOICES, SHAPE_NAMES, Problem, intrinsic_names
+from .refine import OUTLIER_K, RefineResult, refine
 from .result import CalibrationError, CalibrationResult, ViewReport
+from .rig import RigOptions, RigResult, calibrate_rig
+from .warm import IntrinsicStart, calibrate_warm
 
-__all__ = ["DISTORTION_MODELS", "METHODS", "SHAPE_CHOICES", "SHAPE_NAMES", "CalibrationError", "CalibrationOptions",
-           "CalibrationResult", "RefineResult", "ViewReport", "calibrate", "refine"]
+__all__ = ["DISTORTION_MODELS", "METHODS", "MIN_VIEWS", "OUTLIER_K", "SHAPE_CHOICES", "SHAPE_NAMES", "CalibrationError",
+           "CalibrationOptions", "CalibrationResult", "IntrinsicStart", "PlanePose", "Problem", "RefineResult",
+           "RigOptions", "RigResult", "ViewData", "ViewReport", "calibrate", "calibrate_rig", "calibrate_warm",
+           "intrinsic_names", "levenberg_marquardt", "observations", "pose_from_view", "pose_to_params", "refine",
+           "target_shape_frame"]

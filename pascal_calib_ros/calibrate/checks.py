@@ -9,10 +9,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..detect.detection import Detection
-from ..geometry.camera import Camera
-from ..geometry.lens import LensModel
-from ..geometry.model_field import consistent_rays
+from ..detect import Detection
+from ..geometry import Camera, LensModel, consistent_rays
 from ..targets import Target
 from .plumbline import equidistant_focal, has_straight_rows
 from .refine import RefineResult

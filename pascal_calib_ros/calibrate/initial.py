@@ -10,22 +10,30 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..detect.detection import Detection
-from ..geometry.camera import Camera, rodrigues, rotation_to_rvec
-from ..geometry.circular import (
+from ..detect import Detection
+from ..geometry import (
     PT1_STARTS,
+    Camera,
     CircularPointError,
+    Ellipse,
+    IacSolution,
+    IndefiniteOmegaError,
     centre_image_from_ring,
     circular_point_pt2,
     circular_points_from_ring,
     circular_points_huang,
     circular_points_pt1,
+    ellipses_from_conics,
+    fit_conics_algebraic,
+    fit_homography,
+    iac_focal_only,
+    iac_from_circular_points,
+    normalize_conic,
+    rodrigues,
+    rotation_to_rvec,
     vanishing_line_from_centre,
     vanishing_line_huang,
 )
-from ..geometry.conic import Ellipse, ellipses_from_conics, fit_conics_algebraic, normalize_conic
-from ..geometry.homography import fit_homography
-from ..geometry.iac import IacSolution, IndefiniteOmegaError, iac_focal_only, iac_from_circular_points
 from ..targets import Target
 
 CIRCLE_METHODS = ("ring", "pt2", "pt1", "huang")

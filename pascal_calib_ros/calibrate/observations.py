@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..detect.detection import Detection
+from ..detect import Detection
 from ..targets import Target
 
 if TYPE_CHECKING:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from ..detect.detection import Detection
+from ..detect import Detection
 from ..targets import Target
 from .initial import (
     CIRCLE_METHODS,

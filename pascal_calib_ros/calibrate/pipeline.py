@@ -11,11 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from ..detect.detection import Detection
-from ..geometry.camera import Camera
-from ..geometry.circular import CircularPointError
-from ..geometry.iac import DegenerateViewsError
-from ..geometry.lens import DISTORTION_CHOICES
+from ..detect import Detection
+from ..geometry import DISTORTION_CHOICES, Camera, CircularPointError, DegenerateViewsError
 from ..targets import Target
 from .checks import (
     MISFIT_RMS,

@@ -16,9 +16,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..detect.detection import Detection
-from ..geometry.camera import Camera
-from ..geometry.conic import ellipses_from_conics, fit_conics_algebraic, sampson_distances
+from ..detect import Detection
+from ..geometry import Camera, ellipses_from_conics, fit_conics_algebraic, sampson_distances
 from ..targets import Target
 
 

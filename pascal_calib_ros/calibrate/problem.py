@@ -35,13 +35,16 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ..geometry.camera import (
+from ..geometry import (
+    DISTORTION_CHOICES,
     INTRINSIC_BASE,
+    PLUMB_BOB,
+    LensModel,
+    PolynomialModel,
     pixels_to_normalized,
     project_with_jacobians,
     project_with_point_jacobian,
 )
-from ..geometry.lens import DISTORTION_CHOICES, PLUMB_BOB, LensModel, PolynomialModel
 from .observations import ViewData
 
 # the plumb_bob parameter vector (other models: INTRINSIC_BASE + their coefficients)

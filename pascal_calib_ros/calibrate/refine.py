@@ -9,8 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..geometry.camera import Camera
-from ..geometry.lens import DISTORTION_CHOICES
+from ..geometry import DISTORTION_CHOICES, Camera
 from .covariance import correlation_factors, row_variances, sandwich_covariance
 from .lm import DEFAULT_LM, LMOptions, LMResult, levenberg_marquardt
 from .observations import ViewData

@@ -8,9 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import PascalCalibError
-from ..geometry.camera import Camera
-from ..geometry.image_field import observed_field_mask
-from ..geometry.lens import DISTORTION_CHOICES
+from ..geometry import DISTORTION_CHOICES, Camera, observed_field_mask
 from .refine import RefineResult
 
 

@@ -29,11 +29,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..detect.detection import Detection
-from ..geometry.circular import CircularPointError
-from ..geometry.lens import DISTORTION_CHOICES
-from ..geometry.so3 import left_jacobian, skew
-from ..geometry.transform import Transform
+from ..detect import Detection
+from ..geometry import DISTORTION_CHOICES, CircularPointError, Transform, left_jacobian, skew
 from ..targets import Target
 from .covariance import row_variances, sandwich_covariance
 from .handeye.labelling import relabelled, target_symmetries

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry.so3 import compose_with_jacobians
+from ..geometry import compose_with_jacobians
 from .problem import Problem
 
 

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..geometry.transform import Transform
+from ..geometry import Transform
 from .result import CalibrationError
 
 

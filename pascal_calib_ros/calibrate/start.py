@@ -8,11 +8,15 @@ from typing import Any
 
 import numpy as np
 
-from ..detect.detection import Detection
-from ..geometry.camera import Camera
-from ..geometry.circular import CircularPointError
-from ..geometry.iac import DegenerateViewsError, IacSolution, IndefiniteOmegaError
-from ..geometry.lens import DISTORTION_CHOICES
+from ..detect import Detection
+from ..geometry import (
+    DISTORTION_CHOICES,
+    Camera,
+    CircularPointError,
+    DegenerateViewsError,
+    IacSolution,
+    IndefiniteOmegaError,
+)
 from ..targets import Target
 from .initial import (
     grid_homography_init,

@@ -19,8 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..detect.detection import Detection
-from ..geometry.circular import CircularPointError
+from ..detect import Detection
+from ..geometry import CircularPointError
 from ..targets import Target
 from .initial import pose_to_params, pose_with_camera
 from .lm import WARM_START, levenberg_marquardt

@@ -9,8 +9,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ..detect.detection import Detection
-from ..geometry.iac import DegenerateViewsError
+from ..detect import Detection
+from ..geometry import DegenerateViewsError
 from ..targets import Target
 from .initial import PlanePose
 

@@ -5,8 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..io.bags import BagError, write_arm_bag, write_image_bag
-from ..io.images import ImageReadError, expand_image_args
+from ..io import BagError, ImageReadError, expand_image_args, write_arm_bag, write_image_bag
 from .common import EXIT_INPUT, EXIT_OK, error
 
 
@@ -40,8 +39,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run_stereo(args: argparse.Namespace) -> int:
     """``--left``/``--right``: a stereo session's two image topics, one shot per pair of files."""
-    from ..io.stereo_bags import write_stereo_bag
-    from ..workflows.stereo import PairingError, expand_glob, pair_files
+    from ..io import write_stereo_bag
+    from ..workflows import PairingError, expand_glob, pair_files
 
     if args.images or args.poses or not (args.left and args.right):
         error("a stereo bag takes --left and --right (no other images, no --poses)")

@@ -7,14 +7,9 @@ import sys
 import time
 from pathlib import Path
 
-from ..calibrate.options import METHODS, CalibrationOptions
-from ..calibrate.problem import DISTORTION_MODELS, SHAPE_CHOICES
-from ..calibrate.refine import OUTLIER_K
-from ..calibrate.result import CalibrationError
-from ..report.text import format_summary, projection_line
-from ..workflows.detection import detect_files, detection_params
-from ..workflows.intrinsic import run_intrinsic
-from ..workflows.outputs import ResultPaths
+from ..calibrate import DISTORTION_MODELS, METHODS, OUTLIER_K, SHAPE_CHOICES, CalibrationError, CalibrationOptions
+from ..report import format_summary, projection_line
+from ..workflows import ResultPaths, detect_files, detection_params, run_intrinsic
 from .common import (
     EXIT_CALIB,
     EXIT_INPUT,

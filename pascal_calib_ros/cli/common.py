@@ -7,11 +7,10 @@ import sys
 import time
 from pathlib import Path
 
-from ..detect.detection import Detection
-from ..io.images import expand_image_args, read_grey
-from ..io.session_folder import SessionFolder, SessionFolderError, is_session_folder
+from ..detect import Detection
+from ..io import SessionFolder, SessionFolderError, expand_image_args, is_session_folder, read_grey
 from ..targets import Target, TargetError, resolve_target
-from ..workflows.outputs import ReportRequest, ResultPaths, ResultWriter
+from ..workflows import ReportRequest, ResultPaths, ResultWriter
 
 EXIT_OK, EXIT_CALIB, EXIT_INPUT = 0, 1, 2
 

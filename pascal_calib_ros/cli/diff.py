@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis.compare import projection_difference, region_from_report
+from ..analysis import projection_difference, region_from_report
 from ..errors import PascalCalibError
-from ..io.calibration_files import read_calibration_file
+from ..io import read_calibration_file
 from .common import EXIT_INPUT, EXIT_OK, error
 
 

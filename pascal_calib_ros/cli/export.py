@@ -10,10 +10,10 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..analysis.refit import DEFAULT_MAX_ERROR_PX, RefitError
+from ..analysis import DEFAULT_MAX_ERROR_PX, RefitError
 from ..errors import PascalCalibError
-from ..geometry.lens import DISTORTION_CHOICES
-from ..workflows.export import FORMATS, ExportRequest, export_calibration
+from ..geometry import DISTORTION_CHOICES
+from ..workflows import FORMATS, ExportRequest, export_calibration
 from .common import EXIT_CALIB, EXIT_INPUT, EXIT_OK, error
 
 

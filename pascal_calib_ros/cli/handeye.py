@@ -7,22 +7,23 @@ import argparse
 import sys
 from pathlib import Path
 
+from ..calibrate import DISTORTION_MODELS, METHODS, CalibrationError, CalibrationOptions
 from ..calibrate.handeye import HandEyeOptions
-from ..calibrate.options import METHODS, CalibrationOptions
-from ..calibrate.problem import DISTORTION_MODELS
-from ..calibrate.result import CalibrationError
-from ..detect.detection import Detection, DetectionParams
-from ..geometry.transform import Transform
-from ..io.bags import BagError
-from ..io.hand_eye_yaml import PosesYamlError, read_poses_yaml
-from ..io.session_folder import SessionFolder
-from ..io.tf_command import static_transform_command
-from ..report.text import format_summary, hand_eye_summary
-from ..session.arm_bag import read_arm_bag
+from ..detect import Detection, DetectionParams
+from ..geometry import Transform
+from ..io import BagError, PosesYamlError, SessionFolder, read_poses_yaml, static_transform_command
+from ..report import format_summary, hand_eye_summary
+from ..session import read_arm_bag
 from ..targets import Target
-from ..workflows.detection import detect_files, detect_images, detection_params
-from ..workflows.hand_eye import hand_eye_frames, run_hand_eye
-from ..workflows.outputs import HAND_EYE_FILE, ResultPaths
+from ..workflows import (
+    HAND_EYE_FILE,
+    ResultPaths,
+    detect_files,
+    detect_images,
+    detection_params,
+    hand_eye_frames,
+    run_hand_eye,
+)
 from .common import (
     EXIT_CALIB,
     EXIT_INPUT,

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..sim.session import SessionSpec, render_session
+from ..sim import SessionSpec, render_session
 from .common import EXIT_INPUT, EXIT_OK, target_or_none
 
 

@@ -7,13 +7,10 @@ import argparse
 import sys
 from typing import Any
 
-from ..calibrate.options import METHODS, CalibrationOptions
-from ..calibrate.problem import DISTORTION_MODELS
-from ..calibrate.rig import RigOptions
-from ..detect.detection import DetectionParams
+from ..calibrate import DISTORTION_MODELS, METHODS, CalibrationOptions, RigOptions
+from ..detect import DetectionParams
 from ..errors import PascalCalibError
-from ..workflows.detection import detection_params
-from ..workflows.stereo import PairingError, StereoOptions, run_rig, run_stereo, write_reports
+from ..workflows import PairingError, StereoOptions, detection_params, run_rig, run_stereo, write_reports
 from .common import EXIT_CALIB, EXIT_INPUT, EXIT_OK, error, progress, target_or_none
 
 

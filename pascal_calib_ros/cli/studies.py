@@ -50,7 +50,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    from ..studies.bench import run_bench
+    from ..studies import run_bench
 
     result: dict[str, Any] = dict(run_bench(quick=args.quick, print_table=not args.json))
     if args.json:
@@ -60,24 +60,24 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 def cmd_study(args: argparse.Namespace) -> int:
     if args.name == "handeye":
-        from ..studies.handeye_study import run_handeye_study
+        from ..studies import run_handeye_study
 
         run_handeye_study(Path(args.out), views=args.views or 20, seed=args.seed, opencv4_python=args.opencv4_python,
                           targets=tuple(args.targets.split(",")), systematic_mm=args.arm_systematic_mm)
         return EXIT_OK
     if args.name == "guided":
-        from ..studies.guided_study import run_guided_study
+        from ..studies import run_guided_study
 
         run_guided_study(Path(args.out), seeds=args.seeds, quick=args.quick, only=args.only, jobs=args.jobs,
                          draws=args.draws or 0)
         return EXIT_OK
     if args.name == "trust":
-        from ..studies.trust_study import trust
+        from ..studies import trust
 
         trust(Path(args.out), draws=args.draws or 10, views=args.views or 12, only=args.only)
         return EXIT_OK
     if args.name == "verify":
-        from ..studies.verify_study import StudySpec, verify_study
+        from ..studies import StudySpec, verify_study
 
         parts = {"camera", "hand-eye", "timing"} if not args.only else set(args.only.split(","))
         verify_study(Path(args.out), StudySpec(sessions=args.sessions or 20, views=args.views or 10, seed=args.seed,
@@ -85,28 +85,28 @@ def cmd_study(args: argparse.Namespace) -> int:
                                                timing="timing" in parts))
         return EXIT_OK
     if args.name == "model-bias":
-        from ..studies.model_bias_study import model_bias_study
+        from ..studies import model_bias_study
 
         model_bias_study(Path(args.out), views=args.views or 12)
         return EXIT_OK
     if args.name == "stereo":
-        from ..studies.stereo_study import stereo_study
+        from ..studies import stereo_study
 
         stereo_study(Path(args.out), args.views or 15, args.seed, args.draws or 10, args.sessions or 5)
         return EXIT_OK
     if args.name == "boards":
-        from ..studies.boards_study import boards_study
+        from ..studies import boards_study
 
         boards_study(Path(args.out), views=args.views or 12, seed=args.seed)
         return EXIT_OK
-    from ..studies.study import run_study
+    from ..studies import run_study
 
     run_study(args.name, Path(args.out), views=args.views, seed=args.seed)
     return EXIT_OK
 
 
 def cmd_experiment(args: argparse.Namespace) -> int:
-    from ..studies.experiments import run_experiment
+    from ..studies import run_experiment
 
     run_experiment(args.name, Path(args.out), args.trials, args.seed)
     return EXIT_OK

@@ -12,19 +12,25 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..calibrate.problem import DISTORTION_MODELS
-from ..detect.detection import Detection
-from ..geometry.placement import Placement
-from ..geometry.transform import Transform
-from ..io.hand_eye_yaml import PosesYamlError, read_poses_yaml
-from ..io.images import expand_image_args
-from ..io.next_yaml import NextYamlError, Suggestions, read_next_yaml, write_next_yaml
+from ..calibrate import DISTORTION_MODELS
+from ..detect import Detection
+from ..geometry import Placement, Transform
+from ..io import (
+    NextYamlError,
+    PosesYamlError,
+    Suggestions,
+    expand_image_args,
+    read_next_yaml,
+    read_poses_yaml,
+    write_next_yaml,
+)
 from ..modes import HandEyeMode
 from ..targets import TargetError, resolve_target
-from ..workflows.detection import detect_files, detection_params
-from ..workflows.suggest import (
+from ..workflows import (
     SuggestError,
     SuggestOptions,
+    detect_files,
+    detection_params,
     suggest_for_arm,
     suggest_for_person,
     summary,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..io.printable import write_printable
+from ..io import write_printable
 from ..targets import TargetError, resolve_target
 from .common import EXIT_INPUT, EXIT_OK, error
 

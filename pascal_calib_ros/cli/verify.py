@@ -11,11 +11,10 @@ import argparse
 import sys
 from pathlib import Path
 
-from ..analysis.verify import DEFAULT_ALPHA
-from ..analysis.verify_views import VerifyError
+from ..analysis import DEFAULT_ALPHA, VerifyError
 from ..errors import PascalCalibError
-from ..io.images import expand_image_args
-from ..workflows.verify import VerifyRequest, run_verify
+from ..io import expand_image_args
+from ..workflows import VerifyRequest, run_verify
 from .common import EXIT_CALIB, EXIT_INPUT, EXIT_OK, error
 
 EXIT_CHANGED = 3

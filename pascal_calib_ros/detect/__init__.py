@@ -1,7 +1,10 @@
 """Detection: per view, the target's features at subpixel accuracy (circle edges and their conics,
 checkerboard corners) or a rejection with its reason (:func:`detect_target`)."""
 
-from .detection import CircleEdge, Detection, DetectionParams, feature_points
+from .checkerboard import refine_corners, right_handed
+from .detection import DEFAULT_PARAMS, CircleEdge, Detection, DetectionParams, feature_points
+from .marker_boards import aruco_detector, charuco_detector
 from .target_detector import detect_target
 
-__all__ = ["CircleEdge", "Detection", "DetectionParams", "detect_target", "feature_points"]
+__all__ = ["DEFAULT_PARAMS", "CircleEdge", "Detection", "DetectionParams", "aruco_detector", "charuco_detector",
+           "detect_target", "feature_points", "refine_corners", "right_handed"]

@@ -36,7 +36,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from ..geometry.circular import CircularPointError, centre_image_from_ring
+from ..geometry import CircularPointError, centre_image_from_ring
 from ..targets import Checkerboard, Target
 from .detection import Detection
 from .saddle import SaddleFit, refine_saddles

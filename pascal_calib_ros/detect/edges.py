@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 
 from ..errors import PascalCalibError
-from ..geometry.conic import (
+from ..geometry import (
     ConicFitError,
     Ellipse,
     conic_curvature,

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import PascalCalibError
-from ..geometry.conic import Ellipse, conics_from_ellipses, group_medians
+from ..geometry import Ellipse, conics_from_ellipses, group_medians
 from ..targets import CircleGrid, Target
 from .edges import EdgeFit, refine_edges_batch
 

@@ -21,9 +21,10 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ..geometry.circular import CircularPointError, centre_image_from_ring
-from ..geometry.conic import (
+from ..geometry import (
+    CircularPointError,
     Ellipse,
+    centre_image_from_ring,
     ellipses_from_conics,
     fit_conics_algebraic,
     group_medians,

@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 
 from ..errors import PascalCalibError
-from ..geometry.transform import Transform
+from ..geometry import Transform
 from .images import read_grey
 
 IMAGE_TYPE = "sensor_msgs/msg/Image"

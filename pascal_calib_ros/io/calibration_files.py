@@ -24,8 +24,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from ..geometry.camera import Camera
-from ..geometry.transform import Transform
+from ..geometry import Camera, Transform
 from .calibration_json import CalibrationRecord, looks_like_calibration_json, record_of_document, sidecar_path
 from .camera_yaml import CameraYamlError, read_camera_yaml
 from .format_error import CalibrationFileError

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from ..geometry.camera import Camera
+from ..geometry import Camera
 from .atomic import write_text_atomic
 from .format_error import CalibrationFileError
 
@@ -57,6 +57,11 @@ class CalibrationRecord:
     projection_uncertainty: dict[str, float] | None = None
     created: str = ""
     note: str = ""
+
+    @property
+    def choice(self) -> str:
+        """The ``--distortion`` choice it was estimated with (its model's full set when not recorded)."""
+        return self.distortion_choice or self.camera.model
 
     @property
     def std(self) -> dict[str, float]:

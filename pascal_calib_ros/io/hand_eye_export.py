@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from ..geometry.transform import Transform
+from ..geometry import Transform
 from .tf_command import static_transform_command
 
 

@@ -40,7 +40,7 @@ import numpy as np
 import yaml
 
 from ..errors import PascalCalibError
-from ..geometry.transform import Transform, TransformError
+from ..geometry import Transform, TransformError
 from ..modes import HandEyeMode
 from .atomic import write_text_atomic
 

@@ -30,8 +30,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from ..geometry.camera import Camera
-from ..geometry.transform import Transform, TransformError
+from ..geometry import Camera, Transform, TransformError
 from .format_error import CalibrationFileError, check_exportable
 
 

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..geometry.camera import Camera
+from ..geometry import Camera
 from .format_error import CalibrationFileError, check_exportable
 from .mrcal_splined import SplinedModel, parse_lensmodel, splined_camera
 

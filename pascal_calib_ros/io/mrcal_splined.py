@@ -23,8 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry.camera import Camera
-from ..geometry.lens import LensModel
+from ..geometry import Camera, LensModel
 
 PATTERN = re.compile(r"^LENSMODEL_SPLINED_STEREOGRAPHIC_order=(\d+)_Nx=(\d+)_Ny=(\d+)_fov_x_deg=(\d+)$")
 

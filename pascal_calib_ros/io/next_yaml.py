@@ -37,8 +37,7 @@ from typing import Any
 import yaml
 
 from ..errors import PascalCalibError
-from ..geometry.placement import Placement
-from ..geometry.transform import Transform
+from ..geometry import Placement, Transform
 from ..modes import HandEyeMode, parse_mode
 from .atomic import write_text_atomic
 

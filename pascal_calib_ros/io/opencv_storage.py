@@ -29,7 +29,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..geometry.camera import Camera
+from ..geometry import Camera
 from .format_error import CalibrationFileError, check_exportable
 
 KEYS_K = ("camera_matrix", "cameraMatrix", "K", "intrinsic_matrix")

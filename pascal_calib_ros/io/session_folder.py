@@ -36,7 +36,7 @@ import numpy as np
 import yaml
 
 from ..errors import PascalCalibError
-from ..geometry.transform import Transform, TransformError
+from ..geometry import Transform, TransformError
 from .atomic import FileWriteError, write_bytes_atomic, write_text_atomic
 from .images import ImageReadError, ImageWriteError, encode_image, read_grey
 

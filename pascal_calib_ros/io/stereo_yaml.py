@@ -24,9 +24,7 @@ import numpy as np
 import yaml
 
 from ..errors import PascalCalibError
-from ..geometry.camera import Camera
-from ..geometry.rectify import StereoRectification
-from ..geometry.transform import Transform
+from ..geometry import Camera, StereoRectification, Transform
 from .atomic import write_text_atomic
 from .camera_yaml import CameraInfoData, write_camera_yaml
 from .tf_command import static_transform_command

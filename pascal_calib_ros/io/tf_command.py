@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from ..geometry.transform import Transform
+from ..geometry import Transform
 
 
 def static_transform_command(X: Transform, parent: str, child: str, digits: int = 6) -> str:

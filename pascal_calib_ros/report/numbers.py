@@ -10,8 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from ..analysis.assessment import Assessment, residual_samples_of
-from ..analysis.residual_stats import (
+from ..analysis import (
+    Assessment,
     ModelBias,
     Radial,
     Regional,
@@ -19,12 +19,12 @@ from ..analysis.residual_stats import (
     model_bias,
     radial,
     regional,
+    residual_samples_of,
     views_per_region,
 )
-from ..calibrate.result import CalibrationResult
-from ..detect.detection import Detection, feature_points
-from ..geometry.image_field import grid_pixels, grid_shape, observed_field_mask, view_hulls
-from ..geometry.model_field import distortion_field, model_valid
+from ..calibrate import CalibrationResult
+from ..detect import Detection, feature_points
+from ..geometry import distortion_field, grid_pixels, grid_shape, model_valid, observed_field_mask, view_hulls
 
 FIELD_MARGIN = 30.0  # px around the observed field where the distortion field is still drawn
 

@@ -31,14 +31,8 @@ from typing import Any
 
 import numpy as np
 
-from ..analysis.assessment import Assessment
-from ..analysis.residual_stats import (
-    MIN_EFFECTIVE,
-    RADIAL_FLOOR_PX,
-    REGIONAL_FLOOR_PX,
-    ModelBias,
-)
-from ..detect.detection import Detection
+from ..analysis import MIN_EFFECTIVE, RADIAL_FLOOR_PX, REGIONAL_FLOOR_PX, Assessment, ModelBias
+from ..detect import Detection
 from .numbers import (
     DISTORTION_STEP,
     FIELD_MARGIN,

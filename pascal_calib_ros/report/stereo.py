@@ -19,10 +19,10 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ..analysis.epipolar import epipolar_samples
-from ..calibrate.rig import RigResult
-from ..detect.detection import Detection
-from ..geometry.rectify import StereoRectification, rectify_maps
+from ..analysis import epipolar_samples
+from ..calibrate import RigResult
+from ..detect import Detection
+from ..geometry import StereoRectification, rectify_maps
 from ..targets import Target
 
 ShotImage = Callable[[int, int], "np.ndarray | None"]  # (camera, shot) -> grey image (None: not at hand)

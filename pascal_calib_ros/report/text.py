@@ -7,10 +7,9 @@ import textwrap
 
 import numpy as np
 
-from ..analysis.assessment import Assessment
-from ..analysis.residual_stats import RADIAL_FLOOR_PX, REGIONAL_FLOOR_PX
+from ..analysis import RADIAL_FLOOR_PX, REGIONAL_FLOOR_PX, Assessment
+from ..calibrate import CalibrationResult, ViewReport
 from ..calibrate.handeye import HandEyeResult
-from ..calibrate.result import CalibrationResult, ViewReport
 from .numbers import ReportData, per_circle_rms
 
 

@@ -27,30 +27,26 @@ from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 from sensor_msgs.srv import SetCameraInfo
 from std_msgs.msg import Header
 
+from ..calibrate import SHAPE_CHOICES, CalibrationError, CalibrationOptions, CalibrationResult
 from ..calibrate.handeye import HandEyeOptions
-from ..calibrate.options import CalibrationOptions
-from ..calibrate.problem import SHAPE_CHOICES
-from ..calibrate.result import CalibrationError, CalibrationResult
-from ..detect.detection import Detection
-from ..detect.target_detector import detect_target
+from ..detect import Detection, detect_target
 from ..errors import PascalCalibError
-from ..io.camera_yaml import CameraInfoData
-from ..io.image_msgs import ImageConversionError, compressed_to_grey, grey_to_image_fields, image_to_grey
+from ..io import CameraInfoData, ImageConversionError, compressed_to_grey, grey_to_image_fields, image_to_grey
 from ..modes import HandEyeMode
-from ..session.answer import Answer
-from ..session.collector import placement_points
-from ..session.live import LiveSession, Snapshot, max_motion_of
-from ..workflows.detection import detection_params
-from ..workflows.hand_eye import hand_eye_doubts, hand_eye_frames, run_hand_eye
-from ..workflows.intrinsic import run_intrinsic
-from ..workflows.outputs import (
+from ..session import Answer, LiveSession, Snapshot, max_motion_of, placement_points
+from ..workflows import (
     HAND_EYE_FILE,
     ReportRequest,
     ResultPaths,
+    ResultSet,
     ResultWriter,
     calibration_file_path,
+    detection_params,
+    hand_eye_doubts,
+    hand_eye_frames,
+    run_hand_eye,
+    run_intrinsic,
 )
-from ..workflows.result_set import ResultSet
 from .commit import commit_camera_info
 from .conversions import camera_info_msg, transform_msg
 from .guard import guarded_callback

@@ -9,7 +9,7 @@ from typing import Any
 from sensor_msgs.msg import CameraInfo
 from sensor_msgs.srv import SetCameraInfo
 
-from ..session.answer import Answer
+from ..session import Answer
 
 
 def commit_camera_info(client: Any, info: CameraInfo | None, timeout_s: float = 10.0) -> Answer:

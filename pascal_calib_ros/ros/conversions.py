@@ -9,10 +9,8 @@ from geometry_msgs.msg import Pose, PoseArray, TransformStamped
 from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import Header
 
-from ..geometry.transform import Transform
-from ..io.camera_yaml import CameraInfoData
-from ..io.image_msgs import grey_to_image_fields
-from ..io.next_yaml import Suggestions
+from ..geometry import Transform
+from ..io import CameraInfoData, Suggestions, grey_to_image_fields
 
 
 def camera_info_msg(info: CameraInfoData, header: Any) -> CameraInfo:

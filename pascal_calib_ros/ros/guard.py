@@ -16,7 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from ..io.images import ImageWriteError, write_image
+from ..io import ImageWriteError, write_image
 
 
 def _where(e: BaseException) -> str:

@@ -16,18 +16,14 @@ from geometry_msgs.msg import PoseArray, PoseStamped
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from std_srvs.srv import Trigger
 
-from ..calibrate.options import CalibrationOptions
-from ..detect.detection import Detection
+from ..calibrate import CalibrationOptions
+from ..detect import Detection
 from ..errors import PascalCalibError
-from ..geometry.camera import Camera
-from ..geometry.placement import Placement
-from ..io.calibration_files import read_calibration_file
-from ..io.next_yaml import Suggestions
+from ..geometry import Camera, Placement
+from ..io import Suggestions, read_calibration_file
 from ..modes import HandEyeMode
-from ..session.answer import Answer
-from ..session.guide_overlay import draw_guide
-from ..session.guided_live import GuidedLive, GuideView
-from ..workflows.suggest import SuggestOptions, WarmArmSuggestions, suggest_for_person
+from ..session import Answer, GuidedLive, GuideView, draw_guide
+from ..workflows import SuggestOptions, WarmArmSuggestions, suggest_for_person
 from .conversions import tool_poses_msg
 from .guard import guarded_service
 

@@ -17,8 +17,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 
-from ..session.answer import Answer
-from ..session.result_history import ResultHistory
+from ..session import Answer, ResultHistory
 from ..targets import Target, resolve_target
 from .guard import guarded_callback, guarded_parameters, guarded_service
 from .params import ParameterError, declare_parameters, param_value, params_for, validate_parameters

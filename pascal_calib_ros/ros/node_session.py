@@ -10,21 +10,17 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..detect.target_detector import detect_target
-from ..geometry.transform import Transform
-from ..io.atomic import FileWriteError
-from ..io.calibration_json import sidecar_path
-from ..io.session_folder import SessionFolder, SessionFolderError, SessionManifest, is_session_folder
-from ..session.live import NOT_WRITTEN
-from ..workflows.detection import detection_params
-from ..workflows.outputs import output_folder
-from ..workflows.result_set import ResultSet, ResultStore, copy_atomic
+from ..detect import detect_target
+from ..geometry import Transform
+from ..io import FileWriteError, SessionFolder, SessionFolderError, SessionManifest, is_session_folder, sidecar_path
+from ..session import NOT_WRITTEN
+from ..workflows import ResultSet, ResultStore, copy_atomic, detection_params, output_folder
 from .params import ParameterError
 
 if TYPE_CHECKING:
     import numpy as np
 
-    from ..detect.detection import Detection
+    from ..detect import Detection
     from .calibration_node import CalibrationNode
 
 SESSIONS = "sessions"

@@ -5,11 +5,10 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from ..analysis.verify import Reference
 from ..errors import PascalCalibError
-from ..io.calibration_files import read_calibration_file
-from ..session.answer import Answer
-from ..workflows.verify import hand_eye_reference_of_result, reference_of_file, reference_of_result, verify_detections
+from ..io import CalibrationRecord, read_calibration_file
+from ..session import Answer
+from ..workflows import hand_eye_reference_of_result, record_of_result, reference_of_file, verify_detections
 
 if TYPE_CHECKING:
     from .calibration_node import CalibrationNode
@@ -38,11 +37,11 @@ def run_verification(node: CalibrationNode) -> Answer:
     return Answer(True, line)
 
 
-def verify_reference(node: CalibrationNode) -> Reference:
+def verify_reference(node: CalibrationNode) -> CalibrationRecord:
     """The calibration under test: this session's last result, else the calibration file (with its
     ``.calibration.json`` beside it for the covariance)."""
     if node.result is not None:
-        return reference_of_result(node.result)
+        return record_of_result(node.result)
     path = node.calibration_path()
     if not path.exists():
         raise PascalCalibError(f"no calibration in this session and no {path}: call ~/calibrate first")

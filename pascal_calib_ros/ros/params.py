@@ -8,8 +8,7 @@ import os
 from dataclasses import dataclass
 from typing import Any
 
-from ..calibrate.options import METHODS
-from ..calibrate.problem import DISTORTION_MODELS, SHAPE_CHOICES
+from ..calibrate import DISTORTION_MODELS, METHODS, SHAPE_CHOICES
 from ..errors import PascalCalibError
 from ..targets import TargetError, resolve_target
 

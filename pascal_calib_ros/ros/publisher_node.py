@@ -23,7 +23,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 from ..errors import PascalCalibError
-from ..workflows.static_transform import ResultFileError, StaticTransform, read_result_transforms
+from ..workflows import ResultFileError, StaticTransform, read_result_transforms
 from .conversions import transform_msg
 from .guard import guarded_callback
 from .tf_static import TF_STATIC, StaticTransforms

@@ -46,9 +46,19 @@ from sensor_msgs.msg import CompressedImage, Image
 from std_msgs.msg import Header
 
 from ..errors import PascalCalibError
-from ..io.bags import COMPRESSED_TYPE, POSE_TYPE, BagError, BagImage, BagPose, pose_topics, read_session
-from ..io.image_msgs import grey_to_image_fields
-from ..io.images import IMAGE_SUFFIXES, ImageReadError, read_grey
+from ..io import (
+    COMPRESSED_TYPE,
+    IMAGE_SUFFIXES,
+    POSE_TYPE,
+    BagError,
+    BagImage,
+    BagPose,
+    ImageReadError,
+    grey_to_image_fields,
+    pose_topics,
+    read_grey,
+    read_session,
+)
 from .guard import guarded_callback
 from .stereo_replay import STEREO_PARAMS, StereoReplayError, StereoSource, replay_stereo, requested, stereo_publishers
 

@@ -12,8 +12,8 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from ..geometry.transform import Transform, TransformError
-from ..session.arm_session import PoseBuffer
+from ..geometry import Transform, TransformError
+from ..session import PoseBuffer
 from .guard import guarded_callback
 
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"

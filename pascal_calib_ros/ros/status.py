@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
-from ..report.text import summary_line
+from ..report import summary_line
 
 if TYPE_CHECKING:
     from .calibration_node import CalibrationNode

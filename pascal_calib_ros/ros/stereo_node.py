@@ -37,24 +37,18 @@ from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 from sensor_msgs.srv import SetCameraInfo
 from std_msgs.msg import Header
 
-from ..calibrate.options import CalibrationOptions
-from ..calibrate.result import CalibrationError
-from ..detect.target_detector import detect_target
+from ..calibrate import CalibrationError, CalibrationOptions
+from ..detect import detect_target
 from ..errors import PascalCalibError
-from ..io.atomic import FileWriteError
-from ..io.image_msgs import ImageConversionError, compressed_to_grey, image_to_grey
-from ..session.answer import Answer
-from ..session.collector import placement_points
-from ..session.frame_pairing import SIDES, ApproximatePairer, Dropped
-from ..session.live import max_motion_of
-from ..session.stereo_live import StereoSession
-from ..workflows.detection import detection_params
-from ..workflows.result_set import ResultStore
-from ..workflows.stereo import StereoOutcome
-from ..workflows.stereo_session import (
+from ..io import FileWriteError, ImageConversionError, compressed_to_grey, image_to_grey
+from ..session import SIDES, Answer, ApproximatePairer, Dropped, StereoSession, max_motion_of, placement_points
+from ..workflows import (
+    ResultStore,
+    StereoOutcome,
     StereoSessionOptions,
     answer_line,
     calibrate_stereo_session,
+    detection_params,
     stereo_output_dir,
     write_session_report,
 )

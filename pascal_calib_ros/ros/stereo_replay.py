@@ -24,12 +24,17 @@ from sensor_msgs.msg import CompressedImage, Image
 from std_msgs.msg import Header
 
 from ..errors import PascalCalibError
-from ..io.bags import COMPRESSED_TYPE, BagImage, image_topics
-from ..io.image_msgs import grey_to_image_fields
-from ..io.images import ImageReadError, read_grey
-from ..io.stereo_bags import read_image_topics
-from ..session.frame_pairing import SIDES, ApproximatePairer
-from ..workflows.stereo import PairingError, expand_glob, pair_files
+from ..io import (
+    COMPRESSED_TYPE,
+    BagImage,
+    ImageReadError,
+    grey_to_image_fields,
+    image_topics,
+    read_grey,
+    read_image_topics,
+)
+from ..session import SIDES, ApproximatePairer
+from ..workflows import PairingError, expand_glob, pair_files
 
 STEREO_PARAMS: tuple[tuple[str, Any, str], ...] = (
     ("left_source", "", "stereo: the left camera's folder or glob of images (with right_source; shots paired as "

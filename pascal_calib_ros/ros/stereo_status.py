@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
-from ..session.frame_pairing import SIDES
+from ..session import SIDES
 
 if TYPE_CHECKING:
     from .stereo_node import StereoCalibrationNode

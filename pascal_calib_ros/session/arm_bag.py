@@ -22,18 +22,20 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..geometry.transform import Transform, TransformError
-from ..io.bags import (
+from ..geometry import Transform, TransformError
+from ..io import (
     COMPRESSED_TYPE,
     POSE_TYPE,
     BagError,
     BagImage,
     BagPose,
+    ImageConversionError,
+    compressed_to_grey,
+    image_to_grey,
     image_topics,
     pose_topics,
     read_session,
 )
-from ..io.image_msgs import ImageConversionError, compressed_to_grey, image_to_grey
 from .arm_session import PoseBuffer
 
 STILL_M = 1e-6  # the robot rests if its pose changes by at most this (translation) ...

@@ -36,9 +36,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..detect.detection import Detection
-from ..geometry.conic import ellipses_from_conics
-from ..geometry.transform import Transform, interpolate
+from ..detect import Detection
+from ..geometry import Transform, ellipses_from_conics, interpolate
 from .answer import Answer
 from .rejection import Rejection, RejectionKind
 

@@ -19,9 +19,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from ..detect.detection import Detection
-from ..geometry.conic import ellipses_from_conics
-from ..geometry.transform import Transform
+from ..detect import Detection
+from ..geometry import Transform, ellipses_from_conics
 from ..targets import Target
 from .answer import Answer
 from .rejection import Rejection, RejectionKind

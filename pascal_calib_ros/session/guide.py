@@ -22,12 +22,18 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from ..analysis.candidates import Placement, bootstrap_placements, outline_points, place
-from ..analysis.view_ranking import RankedView, distinct_from_all, suggest_views
-from ..calibrate.refine import RefineResult
-from ..detect.detection import Detection
-from ..geometry.camera import Camera
-from ..geometry.transform import Transform
+from ..analysis import (
+    Placement,
+    RankedView,
+    bootstrap_placements,
+    distinct_from_all,
+    outline_points,
+    place,
+    suggest_views,
+)
+from ..calibrate import RefineResult
+from ..detect import Detection
+from ..geometry import Camera, Transform
 from ..targets import Target
 
 MATCH_OVERLAP = 0.85

@@ -36,13 +36,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ..calibrate.handeye.view_poses import camera_pose
-from ..calibrate.options import MIN_VIEWS, CalibrationOptions
-from ..calibrate.result import CalibrationError
-from ..calibrate.warm import IntrinsicStart, calibrate_warm
-from ..detect.detection import Detection
-from ..geometry.camera import Camera
-from ..geometry.transform import Transform
+from ..calibrate import MIN_VIEWS, CalibrationError, CalibrationOptions, IntrinsicStart, calibrate_warm
+from ..calibrate.handeye import camera_pose
+from ..detect import Detection
+from ..geometry import Camera, Transform
 from ..targets import Target
 from .guide import GuideState, Match
 

@@ -16,9 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..detect.detection import Detection, feature_points
-from ..geometry.image_field import view_hulls
-from ..geometry.transform import Transform
+from ..detect import Detection, feature_points
+from ..geometry import Transform, view_hulls
 from .answer import Answer
 from .arm_session import MOVING, CaptureSlot, PoseBuffer, StillnessGate, capture_is_final, stored_message
 from .collector import ViewCollector

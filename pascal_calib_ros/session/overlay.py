@@ -24,7 +24,7 @@ from collections.abc import Mapping, Sequence
 import cv2
 import numpy as np
 
-from ..detect.detection import Detection
+from ..detect import Detection
 from .collector import AXES, READY_COVERAGE
 
 LABELS = {"x": "X", "y": "Y", "size": "Size", "skew": "Skew"}

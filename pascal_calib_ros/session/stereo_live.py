@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..detect.detection import Detection, feature_points
-from ..geometry.image_field import view_hulls
+from ..detect import Detection, feature_points
+from ..geometry import view_hulls
 from .answer import Answer
 from .arm_session import MOVING, StillnessGate
 from .collector import NO_PLACE, READY_COVERAGE, ViewCollector, view_parameters

@@ -25,8 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..geometry.camera import Camera
-from ..geometry.transform import Transform
+from ..geometry import Camera, Transform
 from ..modes import HandEyeMode
 from ..targets import Target
 from .render import Pose, SensorModel, random_poses, render_view

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from ..geometry.camera import Camera, calibration_errors
+from ..geometry import Camera, calibration_errors
 
 
 def errors_against_truth(truth: dict[str, Any], K: np.ndarray, D: np.ndarray, model: str = "") -> dict[str, float]:
@@ -22,7 +22,7 @@ def errors_against_truth(truth: dict[str, Any], K: np.ndarray, D: np.ndarray, mo
 
 def compare(truth_json: Path, calib_yaml: Path) -> dict[str, float]:
     """Errors of a camera_calibration_parsers YAML against a rendered session's ground truth."""
-    from ..io.camera_yaml import read_camera_yaml
+    from ..io import read_camera_yaml
 
     info = read_camera_yaml(calib_yaml)
     return errors_against_truth(json.loads(truth_json.read_text()), info.K, info.D, info.distortion_model)

@@ -20,7 +20,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..geometry.camera import Camera, rodrigues, rotation_to_rvec
+from ..geometry import Camera, rodrigues, rotation_to_rvec
 from ..targets import ModuleLattice, Target
 
 WHITE = 0.85

@@ -23,8 +23,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..geometry.camera import Camera
-from ..geometry.transform import Transform
+from ..geometry import Camera, Transform
 from ..targets import Target
 from .render import Pose, RenderedView, SensorModel, features_in_image, look_at_pose, render_view, write_view
 from .session import SessionSpec

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..calibrate.pipeline import target_shape_frame
-from ..geometry.camera import Camera
+from ..calibrate import target_shape_frame
+from ..geometry import Camera
 from ..targets import Target
 from .render import (
     Pose,

@@ -16,13 +16,21 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ..analysis.assessment import assess
-from ..calibrate.options import CalibrationOptions
-from ..calibrate.pipeline import calibrate
-from ..detect.target_detector import detect_target
-from ..geometry.camera import Camera
-from ..sim.render import BACKGROUND, Pose, SensorModel, apply_sensor, reflectance, render_view
-from ..sim.session import SessionSpec, render_session_views, session_views
+from ..analysis import assess
+from ..calibrate import CalibrationOptions, calibrate
+from ..detect import detect_target
+from ..geometry import Camera
+from ..sim import (
+    BACKGROUND,
+    Pose,
+    SensorModel,
+    SessionSpec,
+    apply_sensor,
+    reflectance,
+    render_session_views,
+    render_view,
+    session_views,
+)
 from ..targets import Target, packaged_targets_dir, resolve_target
 
 SIZES = ((800, 600), (1920, 1080), (2456, 2058))
@@ -177,7 +185,7 @@ MARKER_GOAL = 1.5  # issue 33: a ChArUco at 5 MP within 1.5x of OpenCV's detectB
 def _opencv_alone(target: Target) -> Any:
     """What OpenCV users run on the same frame: ``CharucoDetector.detectBoard`` for a ChArUco (its
     corner interpolation and cornerSubPix included), ``ArucoDetector.detectMarkers`` for an AprilGrid."""
-    from ..detect.marker_boards import aruco_detector, charuco_detector
+    from ..detect import aruco_detector, charuco_detector
     from ..target_boards import CharucoBoard
 
     board = target.board
@@ -282,7 +290,7 @@ def run_bench(quick: bool = False, print_table: bool = True) -> dict[str, list[d
     # the report of that calibration: report.pdf (7 pages), report.png, report.json, worst views on their images
     import tempfile
 
-    from ..report.pages import write_report
+    from ..report import write_report
 
     gres = assess(calibrate(gdets, grid, CalibrationOptions()))
     imgs = {d.name: v.image for d, v in zip(gdets, gviews, strict=True)}

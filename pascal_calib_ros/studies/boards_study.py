@@ -24,14 +24,10 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ..calibrate.options import CalibrationOptions
-from ..calibrate.pipeline import calibrate
-from ..calibrate.result import CalibrationError
-from ..detect.target_detector import detect_target
-from ..geometry.camera import Camera, calibration_errors
-from ..geometry.image_field import observed_field_mask
-from ..sim.render import render_view
-from ..sim.session import SessionSpec, session_views
+from ..calibrate import CalibrationError, CalibrationOptions, calibrate
+from ..detect import detect_target
+from ..geometry import Camera, calibration_errors, observed_field_mask
+from ..sim import SessionSpec, render_view, session_views
 from ..target_boards import AprilGrid, CharucoBoard
 from ..targets import Target, resolve_target
 from .study import cv_flag, lens_cases, write_rows
@@ -67,7 +63,7 @@ def _ours(target: Target, imgs: list[np.ndarray], cam: Camera, distortion: str, 
 
 def opencv_charuco(board: CharucoBoard, imgs: list[np.ndarray], cam: Camera) -> dict[str, Any]:
     """OpenCV's ChArUco path: detectBoard (its cornerSubPix), calibrateCamera, one thread."""
-    from ..detect.marker_boards import charuco_detector
+    from ..detect import charuco_detector
 
     detector = charuco_detector(board)
     obj_all = np.c_[board.corner_points(), np.zeros(len(board.corner_points()))].astype(np.float32)

@@ -25,28 +25,26 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ..calibrate.observations import ViewData
-from ..calibrate.options import CalibrationOptions
-from ..calibrate.pipeline import calibrate
-from ..calibrate.refine import refine
-from ..calibrate.result import CalibrationError
-from ..detect.detection import Detection
-from ..detect.target_detector import detect_target
-from ..geometry.camera import rodrigues
-from ..geometry.circular import (
+from ..calibrate import CalibrationError, CalibrationOptions, ViewData, calibrate, refine
+from ..detect import Detection, detect_target
+from ..geometry import (
     PT1_STARTS,
     CircularPointError,
+    ConicFitError,
+    DegenerateViewsError,
+    Ellipse,
     centre_image_from_ring,
     circular_point_pt2,
     circular_points_from_ring,
     circular_points_huang,
     circular_points_pt1,
+    fit_conic,
+    fit_homography,
+    iac_from_circular_points,
     pascal_condition,
+    rodrigues,
     vanishing_line_from_centre,
 )
-from ..geometry.conic import ConicFitError, Ellipse, fit_conic
-from ..geometry.homography import fit_homography
-from ..geometry.iac import DegenerateViewsError, iac_from_circular_points
 from ..targets import Ring, Target, resolve_target
 
 K_PAPER = np.array([[500.0, 0.0, 400.0], [0.0, 600.0, 300.0], [0.0, 0.0, 1.0]])
@@ -199,7 +197,7 @@ def _k_zhang(views: list[SimView]) -> np.ndarray:
 
 
 def _k_ring_refined(views: list[SimView]) -> np.ndarray:
-    from ..calibrate.initial import PlanePose, pose_to_params
+    from ..calibrate import PlanePose, pose_to_params
 
     K0 = _k_closed_form(views, "ring")
     data, poses = [], []
@@ -209,8 +207,8 @@ def _k_ring_refined(views: list[SimView]) -> np.ndarray:
         data.append(ViewData(pts, np.zeros((n1 + n2, 2)), np.r_[np.full(n1, RING_OUT), np.full(n2, RING_IN)],
                              np.r_[np.ones(n1), -np.ones(n2)], np.r_[np.zeros(n1), np.ones(n2)].astype(int)))
         # pose from the closed-form K: normal from the vanishing line, centre from the pencil
-        from ..calibrate.initial import pose_from_view
-        from ..detect.detection import CircleEdge
+        from ..calibrate import pose_from_view
+        from ..detect import CircleEdge
 
         det = Detection(W, H, [CircleEdge(0, v.pts["outer"], v.conics["outer"], 1.0, 0.0),
                                CircleEdge(1, v.pts["inner"], v.conics["inner"], 1.0, 0.0)])
@@ -379,7 +377,7 @@ def run_literal(trials: int, seed: int) -> list[dict[str, Any]]:
 
 # -- rendered board: Table 1 and Table 2 analogs ------------------------------------------------
 def _board_sessions(trials: int, seed: int, k1: float, views: int = 10) -> list[tuple[Any, list[Detection]]]:
-    from ..sim.session import SessionSpec, render_session_views
+    from ..sim import SessionSpec, render_session_views
 
     target = resolve_target("pascal_board_a3")
     out = []

@@ -5,9 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..analysis.compare import CompareError, projection_difference
-from ..geometry.camera import Camera
-from ..geometry.lens import model_for_coefficients
+from ..analysis import CompareError, projection_difference
+from ..geometry import Camera, model_for_coefficients
 
 
 def true_errors(truth: Camera, K: np.ndarray, D: np.ndarray, model: str, step: int = 16

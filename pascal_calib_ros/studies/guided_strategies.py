@@ -16,26 +16,23 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..analysis.candidates import (
+from ..analysis import (
     Feasibility,
     Placement,
     bootstrap_placements,
     default_feasibility,
     distance_for_size,
+    distinct_from_all,
     feasibility_problem,
     feature_centre,
     place,
+    suggest_views,
 )
-from ..analysis.view_ranking import distinct_from_all, suggest_views
-from ..calibrate.result import CalibrationResult
-from ..detect.detection import CircleEdge, Detection
-from ..geometry.camera import Camera
-from ..geometry.conic import fit_conics_algebraic
-from ..geometry.image_field import observed_field_mask
-from ..geometry.transform import Transform
-from ..session.collector import ViewCollector, placement_points
-from ..sim.render import Pose, random_poses
-from ..sim.session import SessionSpec
+from ..calibrate import CalibrationResult
+from ..detect import CircleEdge, Detection
+from ..geometry import Camera, Transform, fit_conics_algebraic, observed_field_mask
+from ..session import ViewCollector, placement_points
+from ..sim import Pose, SessionSpec, random_poses
 from ..targets import Target
 
 

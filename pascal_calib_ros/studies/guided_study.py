@@ -31,15 +31,10 @@ from typing import Any
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ..analysis.guidance import Linearisation, ViewPredictor
-from ..calibrate.options import CalibrationOptions
-from ..calibrate.pipeline import calibrate
-from ..calibrate.result import CalibrationError
-from ..calibrate.warm import IntrinsicStart, calibrate_warm
-from ..detect.detection import DetectionParams
-from ..detect.target_detector import detect_target
-from ..sim.render import SensorModel, render_view
-from ..sim.session import SessionSpec
+from ..analysis import Linearisation, ViewPredictor
+from ..calibrate import CalibrationError, CalibrationOptions, IntrinsicStart, calibrate, calibrate_warm
+from ..detect import DetectionParams, detect_target
+from ..sim import SensorModel, SessionSpec, render_view
 from ..targets import resolve_target
 from .guided_errors import true_errors
 from .guided_strategies import STRATEGIES, PersonError, SessionState, make_strategy
@@ -259,8 +254,8 @@ def _done_lines(rs: list[dict[str, Any]], ck: str, fig: dict[str, Any]) -> list[
 def suggestion_timing(quick: bool, n_views: int = 30, repeats: int = 3) -> str:
     """Wall and CPU time of one suggestion (:func:`..analysis.view_ranking.suggest_views`, one BLAS
     thread) from a calibration of ``n_views`` random views, per target; the machine's load beside."""
-    from ..analysis.view_ranking import suggest_views
-    from ..sim.session import render_session_views
+    from ..analysis import suggest_views
+    from ..sim import render_session_views
 
     lines = ["\n### time of one suggestion", "", f"| target | views | wall s (median of {repeats}) | CPU s | "
              "load average |", "|---|---|---|---|---|"]
@@ -287,8 +282,8 @@ def tilt_limits(quick: bool, per_tilt: int = 12) -> str:
     """How often the detector finds each target tilted by a given angle against the line of sight
     (random positions and sizes, 800x600 with k1 = -0.3): the measurement behind
     :data:`..analysis.candidates.MAX_TILT_DEG`."""
-    from ..analysis.candidates import Feasibility, Placement, distance_for_size, feasibility_problem, place
-    from ..sim.render import Pose
+    from ..analysis import Feasibility, Placement, distance_for_size, feasibility_problem, place
+    from ..sim import Pose
 
     cam = cases(quick)["ring"].spec.camera()
     rules = Feasibility(margin_px=16.0, max_tilt_deg=89.0, min_radius_px=0.0, min_square_px=0.0,

@@ -31,12 +31,12 @@ from typing import Any
 import cv2
 import numpy as np
 
+from ..calibrate import CalibrationError
 from ..calibrate.handeye import calibrate_hand_eye
-from ..calibrate.result import CalibrationError
-from ..detect.target_detector import detect_target
-from ..geometry.transform import Transform
+from ..detect import detect_target
+from ..geometry import Transform
 from ..modes import HandEyeMode
-from ..sim.arm import ArmSpec, arm_poses, hand_eye_errors, render_arm_images
+from ..sim import ArmSpec, arm_poses, hand_eye_errors, render_arm_images
 from ..targets import resolve_target
 
 TOOL = Path(__file__).resolve().parents[2] / "tools" / "opencv_handeye.py"

@@ -15,14 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from ..analysis.assessment import residual_samples_of
-from ..analysis.residual_stats import model_bias, radial, regional
-from ..calibrate.options import CalibrationOptions
-from ..calibrate.pipeline import calibrate
-from ..calibrate.result import CalibrationError
-from ..detect.target_detector import detect_target
-from ..sim.render import render_view
-from ..sim.session import SessionSpec, session_views
+from ..analysis import model_bias, radial, regional, residual_samples_of
+from ..calibrate import CalibrationError, CalibrationOptions, calibrate
+from ..detect import detect_target
+from ..sim import SessionSpec, render_view, session_views
 from ..targets import resolve_target
 from .study import lens_cases, markdown_table
 

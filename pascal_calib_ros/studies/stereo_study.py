@@ -37,13 +37,10 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..calibrate.result import CalibrationError
-from ..calibrate.rig import calibrate_rig
-from ..detect.detection import DetectionParams
-from ..detect.target_detector import detect_target
-from ..geometry.transform import Transform
-from ..sim.render import Pose, features_in_image, render_view
-from ..sim.rig import RigSession, RigSpec, render_rig, stereo_pair
+from ..calibrate import CalibrationError, calibrate_rig
+from ..detect import DetectionParams, detect_target
+from ..geometry import Transform
+from ..sim import Pose, RigSession, RigSpec, features_in_image, render_rig, render_view, stereo_pair
 from ..targets import resolve_target
 from .study import opencv_board_corners, write_rows
 

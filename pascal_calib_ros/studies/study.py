@@ -23,15 +23,10 @@ from typing import Any
 
 import numpy as np
 
-from ..calibrate.options import CalibrationOptions
-from ..calibrate.pipeline import calibrate
-from ..calibrate.result import CalibrationError
-from ..detect.detection import DetectionParams
-from ..detect.target_detector import detect_target
-from ..geometry.camera import Camera, calibration_errors
-from ..geometry.image_field import observed_field_mask
-from ..sim.render import features_in_image, render_view
-from ..sim.session import SessionSpec, render_session_views, session_views
+from ..calibrate import CalibrationError, CalibrationOptions, calibrate
+from ..detect import DetectionParams, detect_target
+from ..geometry import Camera, calibration_errors, observed_field_mask
+from ..sim import SessionSpec, features_in_image, render_session_views, render_view, session_views
 from ..targets import resolve_target
 
 
@@ -200,7 +195,7 @@ SHAPE_SCENARIOS = (
 def target_shape(out: Path, views: int, seed: int) -> list[dict[str, Any]]:
     """Ring grid, 1024x768, k1 = -0.43, 20 views, on sheets of known shape (render.SheetShape):
     the nominal flat model beside the estimated shape (refine.SHAPE_NAMES), errors against truth."""
-    from ..calibrate.problem import SHAPE_CHOICES
+    from ..calibrate import SHAPE_CHOICES
 
     target = resolve_target("ring_grid_a4")
     rows: list[dict[str, Any]] = []
@@ -327,7 +322,7 @@ def opencv_board_corners(img: np.ndarray, board_size: tuple[int, int], subpix: b
     window would swallow the small outer squares of a fisheye view)."""
     import cv2
 
-    from ..detect.checkerboard import refine_corners, right_handed
+    from ..detect import refine_corners, right_handed
 
     nx, ny = board_size
     found, c = cv2.findChessboardCornersSB(

@@ -24,17 +24,11 @@ from typing import Any
 
 import numpy as np
 
-from ..analysis.compare import projection_difference
-from ..analysis.cross_validation import difference_share
-from ..analysis.uncertainty import rotation_displacements
-from ..calibrate.options import CalibrationOptions
-from ..calibrate.pipeline import calibrate
-from ..calibrate.result import CalibrationError, CalibrationResult
-from ..detect.detection import DetectionParams
-from ..detect.target_detector import detect_target
-from ..geometry.camera import Camera
-from ..sim.render import render_view
-from ..sim.session import SessionSpec, session_views
+from ..analysis import difference_share, projection_difference, rotation_displacements
+from ..calibrate import CalibrationError, CalibrationOptions, CalibrationResult, calibrate
+from ..detect import DetectionParams, detect_target
+from ..geometry import Camera
+from ..sim import SessionSpec, render_view, session_views
 from ..targets import resolve_target
 from .study import lens_cases
 

@@ -34,21 +34,15 @@ from typing import Any
 
 import numpy as np
 
-from ..analysis.verification import CHANGED, Verification, verify_calibration
-from ..analysis.verify import Reference
-from ..analysis.verify_hand_eye import HandEyeReference
+from ..analysis import CHANGED, HandEyeReference, Verification, verify_calibration
+from ..calibrate import CalibrationOptions, calibrate
 from ..calibrate.handeye import calibrate_hand_eye
-from ..calibrate.options import CalibrationOptions
-from ..calibrate.pipeline import calibrate
-from ..detect.detection import Detection, DetectionParams
-from ..detect.target_detector import detect_target
-from ..geometry.camera import Camera
-from ..geometry.transform import Transform
-from ..sim.arm import DEFAULT_HAND_EYE, ArmSpec, arm_poses, render_arm_images
-from ..sim.render import render_view
-from ..sim.session import SessionSpec, session_views
+from ..detect import Detection, DetectionParams, detect_target
+from ..geometry import Camera, Transform
+from ..io import CalibrationRecord
+from ..sim import DEFAULT_HAND_EYE, ArmSpec, SessionSpec, arm_poses, render_arm_images, render_view, session_views
 from ..targets import Target, resolve_target
-from ..workflows.calibration_record import intrinsic_covariance
+from ..workflows import intrinsic_covariance
 
 
 @dataclass(frozen=True)
@@ -82,10 +76,10 @@ def _detect(target: Target, cam: Camera, spec: SessionSpec, params: DetectionPar
             for name, pose, sens in session_views(target, spec)]
 
 
-def _reference(target: Target, spec: SessionSpec, params: DetectionParams) -> Reference:
+def _reference(target: Target, spec: SessionSpec, params: DetectionParams) -> CalibrationRecord:
     res = calibrate(_detect(target, spec.camera(), spec, params), target, CalibrationOptions())
     names, cov = intrinsic_covariance(res)
-    return Reference(res.camera(), res.distortion_model, names, cov)
+    return CalibrationRecord(res.camera(), distortion_choice=res.distortion_model, parameters=names, covariance=cov)
 
 
 def _row(kind: str, session: int, v: Verification, seconds: float, expect: str) -> dict[str, Any]:
@@ -106,7 +100,7 @@ def camera_sessions(s: StudySpec, log: Callable[[str], None]) -> list[dict[str, 
     params = DetectionParams(gamma=s.gamma)
     rng = np.random.default_rng(s.seed)
     rows: list[dict[str, Any]] = []
-    ref: Reference | None = None
+    ref: CalibrationRecord | None = None
     for k in range(s.sessions):
         if k % s.per_calibration == 0:
             cal = SessionSpec(width=s.width, height=s.height, k1=s.k1, views=s.cal_views, seed=10_000 * s.seed + k)
@@ -126,13 +120,15 @@ def camera_sessions(s: StudySpec, log: Callable[[str], None]) -> list[dict[str, 
     return rows
 
 
-def _arm_reference(target: Target, spec: ArmSpec, params: DetectionParams) -> tuple[Reference, HandEyeReference]:
+def _arm_reference(target: Target, spec: ArmSpec, params: DetectionParams
+                   ) -> tuple[CalibrationRecord, HandEyeReference]:
     session = arm_poses(spec, target)
     imgs = render_arm_images(session, target)
     dets = [detect_target(im, target, params, name=n) for im, n in zip(imgs, session.names, strict=True)]
     res = calibrate_hand_eye(dets, list(session.robot_poses), target, spec.mode, CalibrationOptions())
     names, cov = intrinsic_covariance(res.calibration)
-    ref = Reference(res.calibration.camera(), res.calibration.distortion_model, names, cov)
+    ref = CalibrationRecord(res.calibration.camera(), distortion_choice=res.calibration.distortion_model,
+                            parameters=names, covariance=cov)
     he = HandEyeReference(spec.mode, res.hand_eye, res.translation_std_mm, res.rotation_std_deg,
                           intrinsics_share_mm=res.intrinsics_share_mm, intrinsics_share_deg=res.intrinsics_share_deg)
     return ref, he
@@ -144,7 +140,7 @@ def hand_eye_sessions(s: StudySpec, log: Callable[[str], None]) -> list[dict[str
     params = DetectionParams(gamma=s.gamma)
     rng = np.random.default_rng(s.seed + 7)
     rows: list[dict[str, Any]] = []
-    refs: tuple[Reference, HandEyeReference] | None = None
+    refs: tuple[CalibrationRecord, HandEyeReference] | None = None
     base = ArmSpec(width=s.width, height=s.height, k1=s.k1, field_seed=s.seed)
     X_true = DEFAULT_HAND_EYE[base.mode]
     for k in range(s.sessions):

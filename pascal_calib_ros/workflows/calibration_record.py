@@ -7,11 +7,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..analysis.assessment import Assessment
-from ..calibrate.result import CalibrationResult
-from ..calibrate.rig import RigResult
-from ..geometry.image_field import view_hulls
-from ..io.calibration_json import CalibrationRecord
+from ..analysis import Assessment
+from ..calibrate import CalibrationResult, RigResult
+from ..geometry import view_hulls
+from ..io import CalibrationRecord
 
 
 def intrinsic_covariance(res: CalibrationResult) -> tuple[tuple[str, ...], np.ndarray | None]:
@@ -28,16 +27,21 @@ def intrinsic_covariance(res: CalibrationResult) -> tuple[tuple[str, ...], np.nd
     return names, np.asarray(ref.covariance[:n, :n], float).copy()
 
 
+def record_of_result(res: CalibrationResult, camera_name: str = "camera") -> CalibrationRecord:
+    """A calibration as a record: its camera, what it estimated and the covariance of that
+    (:func:`intrinsic_covariance`), its fit."""
+    names, cov = intrinsic_covariance(res)
+    return CalibrationRecord(camera=res.camera(), camera_name=camera_name, distortion_choice=res.distortion_model,
+                             parameters=names, covariance=cov, rms_px=float(res.rms), views_used=res.n_used)
+
+
 def record_of_calibration(a: Assessment, camera_name: str = "camera", note: str = "") -> CalibrationRecord:
     """What ``calibration.json`` keeps of an assessed calibration (module docstring)."""
     res = a.result
-    names, cov = intrinsic_covariance(res)
     proj = a.projection_summary()
     hulls = view_hulls(res.feature_points()) if res.edge_points else []
     summary = {k: float(v) for k, v in proj.items()} if proj and all(np.isfinite(list(proj.values()))) else None
-    return CalibrationRecord(camera=res.camera(), camera_name=camera_name, distortion_choice=res.distortion_model,
-                             parameters=names, covariance=cov, view_hulls=hulls, rms_px=float(res.rms),
-                             views_used=res.n_used, projection_uncertainty=summary, note=note)
+    return replace(record_of_result(res, camera_name), view_hulls=hulls, projection_uncertainty=summary, note=note)
 
 
 def record_of_rig_camera(rig: RigResult, c: int, a: Assessment, camera_name: str) -> CalibrationRecord:

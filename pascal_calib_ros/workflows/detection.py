@@ -9,10 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..detect.detection import Detection, DetectionParams
-from ..detect.target_detector import detect_target
-from ..geometry.lens import lens_model
-from ..io.images import ImageReadError, read_grey
+from ..detect import Detection, DetectionParams, detect_target
+from ..geometry import lens_model
+from ..io import ImageReadError, read_grey
 from ..targets import Target
 
 

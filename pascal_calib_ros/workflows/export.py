@@ -31,22 +31,29 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..analysis.compare import CompareError, region_from_report
-from ..analysis.refit import DEFAULT_MAX_ERROR_PX, RefitResult, refit_camera
-from ..analysis.refit_splined import CHOICE as SPLINED
-from ..analysis.refit_splined import refit_splined
+from ..analysis import CHOICE as SPLINED
+from ..analysis import DEFAULT_MAX_ERROR_PX, CompareError, RefitResult, refit_camera, refit_splined, region_from_report
 from ..errors import PascalCalibError
-from ..geometry.camera import Camera
-from ..geometry.lens import DISTORTION_CHOICES
-from ..io.calibration_files import CalibrationFile, read_calibration_file
-from ..io.calibration_json import CalibrationRecord, write_calibration_json
-from ..io.format_error import CalibrationFileError
-from ..io.hand_eye_export import static_transform_text, urdf_joint_text
-from ..io.hand_eye_yaml import PosesYamlError, read_hand_eye_yaml
-from ..io.kalibr_camchain import KalibrCamera, kalibr_distortion, write_kalibr_camchain
-from ..io.mrcal_model import MrcalModel, mrcal_model_of_camera, write_mrcal_model
-from ..io.mrcal_splined import SplinedCamera
-from ..io.opencv_storage import write_opencv_storage
+from ..geometry import DISTORTION_CHOICES, Camera
+from ..io import (
+    CalibrationFile,
+    CalibrationFileError,
+    CalibrationRecord,
+    KalibrCamera,
+    MrcalModel,
+    PosesYamlError,
+    SplinedCamera,
+    kalibr_distortion,
+    mrcal_model_of_camera,
+    read_calibration_file,
+    read_hand_eye_yaml,
+    static_transform_text,
+    urdf_joint_text,
+    write_calibration_json,
+    write_kalibr_camchain,
+    write_mrcal_model,
+    write_opencv_storage,
+)
 
 CAMERA_FORMATS = ("opencv", "kalibr", "mrcal", "json")
 HAND_EYE_FORMATS = ("urdf", "static_transform")

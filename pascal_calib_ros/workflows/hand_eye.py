@@ -9,13 +9,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..analysis.assessment import Assessment, assess
+from ..analysis import Assessment, assess
+from ..calibrate import CalibrationOptions
 from ..calibrate.handeye import HandEyeOptions, HandEyeResult, calibrate_hand_eye
-from ..calibrate.options import CalibrationOptions
-from ..detect.detection import Detection
-from ..geometry.transform import Transform
-from ..io.camera_yaml import CameraInfoData
-from ..io.hand_eye_yaml import HandEyeRecord
+from ..detect import Detection
+from ..geometry import Transform
+from ..io import CameraInfoData, HandEyeRecord
 from ..modes import HandEyeMode
 from ..targets import Target
 from .intrinsic import camera_answer

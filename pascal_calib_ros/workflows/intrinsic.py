@@ -6,14 +6,11 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
-from ..analysis.assessment import Assessment, assess
-from ..analysis.cross_validation import CrossValidation, cross_validate
-from ..calibrate.options import CalibrationOptions
-from ..calibrate.pipeline import calibrate
-from ..calibrate.result import CalibrationError
-from ..detect.detection import Detection
-from ..io.camera_yaml import CameraInfoData
-from ..report.text import projection_line, summary_line
+from ..analysis import Assessment, CrossValidation, assess, cross_validate
+from ..calibrate import CalibrationError, CalibrationOptions, calibrate
+from ..detect import Detection
+from ..io import CameraInfoData
+from ..report import projection_line, summary_line
 from ..targets import Target
 from .outputs import ReportRequest, ResultPaths, WrittenFiles, camera_info_data, write_result_files
 

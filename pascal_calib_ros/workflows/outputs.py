@@ -15,14 +15,19 @@ from typing import Any
 
 import numpy as np
 
-from ..analysis.assessment import Assessment
-from ..calibrate.result import CalibrationResult
-from ..detect.detection import Detection
-from ..geometry.camera import rectified_projection
-from ..io.calibration_json import sidecar_path, write_calibration_json
-from ..io.camera_yaml import CameraInfoData, write_camera_yaml
-from ..io.hand_eye_yaml import HandEyeRecord, write_hand_eye_yaml
-from ..report.pages import write_report
+from ..analysis import Assessment
+from ..calibrate import CalibrationResult
+from ..detect import Detection
+from ..geometry import rectified_projection
+from ..io import (
+    CameraInfoData,
+    HandEyeRecord,
+    sidecar_path,
+    write_calibration_json,
+    write_camera_yaml,
+    write_hand_eye_yaml,
+)
+from ..report import write_report
 from .calibration_record import record_of_calibration
 
 HAND_EYE_FILE = "hand_eye.yaml"

@@ -24,7 +24,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..io.atomic import FileWriteError, fsync_folder, replace_symlink, write_bytes_atomic
+from ..io import FileWriteError, fsync_folder, replace_symlink, write_bytes_atomic
 
 RESULTS = "results"
 CURRENT = "current"

@@ -23,9 +23,8 @@ import numpy as np
 import yaml
 
 from ..errors import PascalCalibError
-from ..geometry.transform import Transform, TransformError
-from ..io.hand_eye_yaml import PosesYamlError, read_hand_eye_yaml
-from ..io.stereo_yaml import StereoYamlError, read_rig_yaml, read_stereo_yaml
+from ..geometry import Transform, TransformError
+from ..io import PosesYamlError, StereoYamlError, read_hand_eye_yaml, read_rig_yaml, read_stereo_yaml
 from .hand_eye import MAX_HAND_EYE_STD_DEG, MAX_HAND_EYE_STD_MM
 from .stereo_session import MAX_EPIPOLAR_RMS_PX, MAX_SIGMA_DEG, MAX_SIGMA_MM
 

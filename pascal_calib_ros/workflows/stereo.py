@@ -23,22 +23,22 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis.epipolar import epipolar_rms
-from ..analysis.rig import assess_rig
-from ..calibrate.rig import RigOptions, RigResult, calibrate_rig
-from ..detect.detection import Detection, DetectionParams
-from ..detect.target_detector import detect_target
+from ..analysis import assess_rig, epipolar_rms
+from ..calibrate import RigOptions, RigResult, calibrate_rig
+from ..detect import Detection, DetectionParams, detect_target
 from ..errors import PascalCalibError
-from ..geometry.camera import rectified_projection
-from ..geometry.rectify import StereoRectification, rectify_pair
-from ..io.calibration_json import sidecar_path, write_calibration_json
-from ..io.camera_yaml import CameraInfoData, write_camera_yaml
-from ..io.images import ImageReadError, read_grey
-from ..io.stereo_yaml import (
+from ..geometry import StereoRectification, rectified_projection, rectify_pair
+from ..io import (
+    CameraInfoData,
+    ImageReadError,
     RigCameraData,
     StereoData,
     pair_camera_infos,
+    read_grey,
+    sidecar_path,
     static_transform_command,
+    write_calibration_json,
+    write_camera_yaml,
     write_pair_yamls,
     write_rig_yaml,
     write_stereo_yaml,
@@ -296,7 +296,7 @@ def expand_glob(pattern: str) -> list[Path]:
     """Image files of a folder, a glob pattern or a file (sorted)."""
     import glob
 
-    from ..io.images import IMAGE_SUFFIXES, expand_image_args
+    from ..io import IMAGE_SUFFIXES, expand_image_args
 
     p = Path(pattern)
     if p.is_dir() or p.is_file():
@@ -344,7 +344,7 @@ def write_reports(rig: RigResult, dets: list[list[Detection]], pairing: Pairing,
     """Each camera's report (:func:`~..report.pages.write_report` of its part of the joint
     estimate, its worst views drawn on its own images) in ``out_dir/<camera>/``; for a pair
     (``stereo`` and ``target`` given) also the stereo page (:mod:`..report.stereo`)."""
-    from ..report.pages import write_report
+    from ..report import write_report
 
     out = []
     assessed = assess_rig(rig)
@@ -357,7 +357,7 @@ def write_reports(rig: RigResult, dets: list[list[Detection]], pairing: Pairing,
         files = write_report(assessed[c], dets[c], Path(out_dir) / name, images=image)
         out.append(files.pdf)
     if stereo is not None and target is not None:
-        from ..report.stereo import write_stereo_report
+        from ..report import write_stereo_report
 
         def shot_image(c: int, s: int) -> np.ndarray | None:
             p = pairing.paths[c][s]

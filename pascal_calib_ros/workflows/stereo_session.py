@@ -17,9 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..calibrate.options import CalibrationOptions
-from ..calibrate.rig import RigOptions
-from ..detect.detection import Detection
+from ..calibrate import CalibrationOptions, RigOptions
+from ..detect import Detection
 from ..errors import PascalCalibError
 from ..targets import Target
 from .stereo import Pairing, StereoOptions, StereoOutcome, stereo_from_detections, write_reports

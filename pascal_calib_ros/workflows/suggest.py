@@ -13,21 +13,24 @@ from dataclasses import dataclass
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ..analysis.arm_guidance import DISTINCT_ROLL_DEG, ArmGoals, TrustRegion, arm_model, suggest_arm_views
-from ..analysis.guidance import Linearisation, ViewPredictor
-from ..analysis.view_ranking import RankedView, distinct_from_all, suggest_views
-from ..calibrate.handeye.options import HandEyeOptions
-from ..calibrate.handeye.session import calibrate_hand_eye_warm
-from ..calibrate.handeye.warm import HandEyeStart
-from ..calibrate.options import MIN_VIEWS, CalibrationOptions
-from ..calibrate.pipeline import calibrate
-from ..calibrate.problem import DISTORTION_MODELS
-from ..calibrate.result import CalibrationError
-from ..detect.detection import Detection
+from ..analysis import (
+    DISTINCT_ROLL_DEG,
+    ArmGoals,
+    Linearisation,
+    RankedView,
+    TrustRegion,
+    ViewPredictor,
+    arm_model,
+    distinct_from_all,
+    suggest_arm_views,
+    suggest_views,
+)
+from ..calibrate import DISTORTION_MODELS, MIN_VIEWS, CalibrationError, CalibrationOptions, calibrate
+from ..calibrate.handeye import HandEyeOptions, HandEyeStart, calibrate_hand_eye_warm
+from ..detect import Detection
 from ..errors import PascalCalibError
-from ..geometry.placement import Placement
-from ..geometry.transform import Transform
-from ..io.next_yaml import ArmProgress, Suggestion, Suggestions, ToolSuggestion
+from ..geometry import Placement, Transform
+from ..io import ArmProgress, Suggestion, Suggestions, ToolSuggestion
 from ..modes import HandEyeMode, parse_mode
 from ..targets import Target
 

@@ -11,25 +11,19 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from ..analysis.verification import Verification, verify_calibration
-from ..analysis.verify import DEFAULT_ALPHA, Reference
-from ..analysis.verify_hand_eye import HandEyeReference
+from ..analysis import DEFAULT_ALPHA, HandEyeReference, Verification, verify_calibration
 from ..calibrate.handeye import HandEyeResult
-from ..calibrate.result import CalibrationResult
-from ..detect.detection import Detection, DetectionParams
+from ..detect import Detection, DetectionParams
 from ..errors import PascalCalibError
-from ..geometry.lens import MODELS
-from ..geometry.transform import Transform
-from ..io.calibration_files import CalibrationFile, read_calibration_file
-from ..io.hand_eye_yaml import read_hand_eye_yaml, read_poses_yaml
+from ..geometry import MODELS, Transform
+from ..io import CalibrationFile, CalibrationRecord, read_calibration_file, read_hand_eye_yaml, read_poses_yaml
 from ..modes import HandEyeMode
 from ..targets import Target, resolve_target
-from .calibration_record import intrinsic_covariance
 from .detection import detect_files
 
 
@@ -57,7 +51,7 @@ class VerifyOutcome:
     lines: list[str] = field(default_factory=list)
 
 
-def reference_of_file(cf: CalibrationFile) -> Reference:
+def reference_of_file(cf: CalibrationFile) -> CalibrationRecord:
     """The calibration under test: the camera and, from its record, what was estimated and its
     covariance."""
     if cf.camera.model not in MODELS:
@@ -65,8 +59,8 @@ def reference_of_file(cf: CalibrationFile) -> Reference:
                                "model (compare it with pascal-calib diff)")
     rec = cf.record
     if rec is None or rec.covariance is None:
-        return Reference(cf.camera, rec.distortion_choice if rec else "")
-    return Reference(cf.camera, rec.distortion_choice, rec.parameters, rec.covariance)
+        return CalibrationRecord(cf.camera, cf.camera_name, rec.distortion_choice if rec else "")
+    return replace(rec, camera=cf.camera)
 
 
 def hand_eye_reference(path: Path) -> HandEyeReference:
@@ -128,13 +122,6 @@ def run_verify(req: VerifyRequest) -> VerifyOutcome:
     return VerifyOutcome(v, lines)
 
 
-def reference_of_result(res: CalibrationResult) -> Reference:
-    """A calibration of this session as the calibration under test (its camera, what it
-    estimated and the covariance of that)."""
-    names, cov = intrinsic_covariance(res)
-    return Reference(res.camera(), res.distortion_model, names, cov)
-
-
 def hand_eye_reference_of_result(he: HandEyeResult, parent_frame: str, camera_frame: str, arm_accuracy_mm: float,
                                  arm_accuracy_length: float) -> HandEyeReference:
     """A hand-eye result of this session as the one under test."""
@@ -145,7 +132,7 @@ def hand_eye_reference_of_result(he: HandEyeResult, parent_frame: str, camera_fr
                             intrinsics_share_deg=np.asarray(he.intrinsics_share_deg, float))
 
 
-def verify_detections(dets: list[Detection], target: Target, reference: Reference,
+def verify_detections(dets: list[Detection], target: Target, reference: CalibrationRecord,
                  robot_poses: list[Transform | None] | None = None, hand_eye: HandEyeReference | None = None,
                  alpha: float = DEFAULT_ALPHA) -> tuple[Verification, str]:
     """The verification of collected views (the node's ``~/verify``) and its answer in one line: the

@@ -18,7 +18,6 @@ import pytest
 
 from pascal_calib_ros.analysis.assessment import assess
 from pascal_calib_ros.analysis.verification import CHANGED, HOLDS, verify_calibration
-from pascal_calib_ros.analysis.verify import Reference
 from pascal_calib_ros.analysis.verify_hand_eye import HandEyeReference
 from pascal_calib_ros.analysis.verify_views import VerifyError
 from pascal_calib_ros.calibrate.handeye import calibrate_hand_eye
@@ -28,13 +27,13 @@ from pascal_calib_ros.detect.detection import DetectionParams
 from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.geometry.camera import Camera
 from pascal_calib_ros.geometry.transform import Transform
-from pascal_calib_ros.io.calibration_json import sidecar_path, write_calibration_json
+from pascal_calib_ros.io.calibration_json import CalibrationRecord, sidecar_path, write_calibration_json
 from pascal_calib_ros.io.camera_yaml import CameraInfoData, write_camera_yaml
 from pascal_calib_ros.io.hand_eye_yaml import write_hand_eye_yaml, write_poses_yaml
 from pascal_calib_ros.sim.arm import DEFAULT_HAND_EYE, ArmSpec, arm_poses, render_arm_images
 from pascal_calib_ros.targets import resolve_target
 from pascal_calib_ros.workflows.calibration_record import intrinsic_covariance, record_of_calibration
-from pascal_calib_ros.workflows.hand_eye import HandEyeOutcome
+from pascal_calib_ros.workflows.hand_eye import HandEyeFrames, HandEyeOutcome
 
 TARGET = resolve_target("ring_grid_a4")
 PARAMS = DetectionParams(gamma=2.2)  # the renders' display gamma
@@ -60,7 +59,8 @@ def stored() -> dict:
     dets = [detect_target(im, TARGET, PARAMS, name=n) for im, n in zip(imgs, session.names, strict=True)]
     res = calibrate_hand_eye(dets, list(session.robot_poses), TARGET, "eye_in_hand", CalibrationOptions())
     names, cov = intrinsic_covariance(res.calibration)
-    ref = Reference(res.calibration.camera(), res.calibration.distortion_model, names, cov)
+    ref = CalibrationRecord(res.calibration.camera(), distortion_choice=res.calibration.distortion_model,
+                            parameters=names, covariance=cov)
     he = HandEyeReference("eye_in_hand", res.hand_eye, res.translation_std_mm, res.rotation_std_deg,
                           intrinsics_share_mm=res.intrinsics_share_mm, intrinsics_share_deg=res.intrinsics_share_deg)
     return {"result": res, "ref": ref, "he": he, "truth": session.camera}
@@ -120,7 +120,7 @@ def test_the_cli_answers_with_exit_codes_and_json(stored: dict, unchanged: tuple
                                                                         cal.model))
     write_calibration_json(sidecar_path(cam_yaml), record_of_calibration(assess(cal), "cam"))
     he_yaml = write_hand_eye_yaml(tmp_path / "hand_eye.yaml", HandEyeOutcome(res, assess(res.calibration), 0.0).record(
-        "tool0", "camera_optical_frame", "base_link"))
+        HandEyeFrames("tool0", "camera_optical_frame", "base_link")))
     _, robot, imgs, names = unchanged
     for im, n in zip(imgs, names, strict=True):
         cv2.imwrite(str(tmp_path / n), im)
@@ -142,6 +142,6 @@ def test_the_cli_answers_with_exit_codes_and_json(stored: dict, unchanged: tuple
 
 def test_views_of_another_camera_mode_are_refused(stored: dict, unchanged: tuple) -> None:
     dets, _, _, _ = unchanged
-    other = Reference(Camera(stored["ref"].camera.K, stored["ref"].camera.D, 800, 600))
+    other = CalibrationRecord(Camera(stored["ref"].camera.K, stored["ref"].camera.D, 800, 600))
     with pytest.raises(VerifyError, match="640x480"):
         verify_calibration(dets, TARGET, other)

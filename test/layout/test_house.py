@@ -52,3 +52,36 @@ def test_no_private_name_is_imported_across_modules() -> None:
                 found += [f"{p.relative_to(PACKAGE)}: {a.name}" for a in node.names
                           if a.name.startswith("_") and not a.name.startswith("__")]
     assert not found, f"private names imported across modules: {found}"
+
+
+def test_a_subpackage_is_imported_through_its_root() -> None:
+    """From outside a subpackage only its root (a folder with ``__init__.py``) is imported, so its
+    ``__all__`` is its contract (issue 35; rosbags, scikit-image do the same): ``from ..calibrate
+    import calibrate``, never ``from ..calibrate.pipeline import calibrate``. Inside a subpackage its
+    modules import each other directly."""
+    found = []
+    for p in _modules():
+        here = p.relative_to(PACKAGE).parts[:-1]
+        for node in ast.walk(ast.parse(p.read_text())):
+            if not (isinstance(node, ast.ImportFrom) and node.level and node.module) or node.level - 1 > len(here):
+                continue
+            target = [*here[:len(here) - (node.level - 1)], *node.module.split(".")]
+            if target[:1] == list(here[:1]) or not (PACKAGE / target[0] / "__init__.py").exists():
+                continue  # the same subpackage, or a top-level module (errors, targets, modes)
+            if not (PACKAGE.joinpath(*target) / "__init__.py").exists():
+                found.append(f"{p.relative_to(PACKAGE)}:{node.lineno} from {'.'.join(target)}")
+    assert not found, f"{len(found)} imports of a subpackage's module from outside it: {found[:10]}"
+
+
+def test_a_root_exports_what_it_imports() -> None:
+    """Every name a subpackage root imports is in its ``__all__`` (what its users may rely on)."""
+    missing = []
+    for init in PACKAGE.glob("*/**/__init__.py"):  # the package's own root is lazy (its _API table)
+        tree = ast.parse(init.read_text())
+        names = {a.asname or a.name for n in tree.body if isinstance(n, ast.ImportFrom) for a in n.names}
+        exported = set()
+        for n in tree.body:
+            if isinstance(n, ast.Assign) and any(isinstance(t, ast.Name) and t.id == "__all__" for t in n.targets):
+                exported = set(ast.literal_eval(n.value))
+        missing += [f"{init.relative_to(PACKAGE)}: {name}" for name in sorted(names - exported)]
+    assert not missing, f"imported by a root but not in its __all__: {missing}"

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ...geometry.lens import PLUMB_BOB, LensModel
+from ...geometry import PLUMB_BOB, LensModel
 from ..observations import ViewData
 from ..problem import Problem
 

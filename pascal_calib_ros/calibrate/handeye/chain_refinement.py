@@ -15,8 +15,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ...geometry.lens import DISTORTION_CHOICES, LensModel
-from ...geometry.transform import Transform
+from ...geometry import DISTORTION_CHOICES, LensModel, Transform
 from ...modes import HandEyeMode
 from ...targets import Target
 from ..covariance import correlation_factor

@@ -14,7 +14,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from ...geometry.transform import Transform
+from ...geometry import Transform
 from ...modes import HandEyeMode
 from .options import (
     MIN_AXIS_SPREAD_DEG,

@@ -10,7 +10,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ...geometry.transform import Transform
+from ...geometry import Transform
 from ...modes import HandEyeMode
 from ...targets import Target
 from ..observations import ViewData

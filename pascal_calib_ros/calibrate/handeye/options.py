@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...geometry.transform import Transform
+from ...geometry import Transform
 from ...modes import HandEyeMode
 from ..result import CalibrationError, CalibrationResult
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...geometry.transform import Transform
+from ...geometry import Transform
 from .closed_form import chain_disagreement, complete_ring_poses
 from .options import MIN_VIEWS, HandEyeError, HandEyeOptions
 

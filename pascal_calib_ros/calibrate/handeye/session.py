@@ -60,8 +60,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from ...detect.detection import Detection
-from ...geometry.transform import Transform
+from ...detect import Detection
+from ...geometry import Transform
 from ...modes import HandEyeMode
 from ...targets import Target
 from ..observations import ViewData

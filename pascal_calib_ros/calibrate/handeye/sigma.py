@@ -8,8 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...geometry.so3 import left_jacobian
-from ...geometry.transform import Transform
+from ...geometry import Transform, left_jacobian
 from ...modes import HandEyeMode
 from .chain import ChainProblem
 from .closed_form import (

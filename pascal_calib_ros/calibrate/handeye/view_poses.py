@@ -8,11 +8,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from ...detect.detection import Detection
-from ...geometry.camera import Camera
-from ...geometry.circular import CircularPointError
-from ...geometry.lens import DISTORTION_CHOICES
-from ...geometry.transform import Transform
+from ...detect import Detection
+from ...geometry import DISTORTION_CHOICES, Camera, CircularPointError, Transform
 from ...targets import Target
 from ..initial import pose_with_camera
 from ..lm import levenberg_marquardt

@@ -18,8 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...detect.detection import Detection
-from ...geometry.transform import Transform
+from ...detect import Detection
+from ...geometry import Transform
 from ..warm import IntrinsicStart
 from .options import HandEyeOptions
 
