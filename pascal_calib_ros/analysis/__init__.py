@@ -16,6 +16,7 @@ from .candidates import (
 )
 from .compare import CompareError, ProjectionDiff, projection_difference, region_from_report
 from .cross_validation import CrossValidation, cross_validate, difference_share
+from .detector_bias import DetectorBias
 from .epipolar import epipolar_rms, epipolar_samples
 from .guidance import Linearisation, ViewPredictor
 from .refit import DEFAULT_MAX_ERROR_PX, RefitError, RefitResult, refit_camera
@@ -48,12 +49,12 @@ from .view_ranking import RankedView, distinct_from_all, suggest_views
 
 __all__ = ["CHANGED", "CHOICE", "DEFAULT_ALPHA", "DEFAULT_MAX_ERROR_PX", "DISTINCT_ROLL_DEG", "MIN_EFFECTIVE",
            "RADIAL_FLOOR_PX", "REGIONAL_FLOOR_PX", "ArmGoals", "Assessment", "CompareError", "CrossValidation",
-           "Feasibility", "HandEyeReference", "Linearisation", "ModelBias", "Placement", "ProjectionDiff",
-           "ProjectionUncertainty", "Radial", "RankedView", "RefitError", "RefitResult", "Regional", "ResidualSamples",
-           "TrustRegion", "Verification", "VerifyError", "ViewPredictor", "arm_model", "assess", "assess_rig",
-           "bootstrap_placements", "cross_validate", "default_feasibility", "difference_share", "distance_for_size",
-           "distinct_from_all", "epipolar_rms", "epipolar_samples", "feasibility_problem", "feature_centre",
-           "model_bias", "model_bias_of", "outline_points", "place", "projection_difference", "projection_uncertainty",
-           "projection_uncertainty_of", "radial", "refit_camera", "refit_splined", "region_from_report", "regional",
-           "residual_samples_of", "rotation_displacements", "suggest_arm_views", "suggest_views", "verify_calibration",
-           "views_per_region"]
+           "DetectorBias", "Feasibility", "HandEyeReference", "Linearisation", "ModelBias", "Placement",
+           "ProjectionDiff", "ProjectionUncertainty", "Radial", "RankedView", "RefitError", "RefitResult", "Regional",
+           "ResidualSamples", "TrustRegion", "Verification", "VerifyError", "ViewPredictor", "arm_model", "assess",
+           "assess_rig", "bootstrap_placements", "cross_validate", "default_feasibility", "difference_share",
+           "distance_for_size", "distinct_from_all", "epipolar_rms", "epipolar_samples", "feasibility_problem",
+           "feature_centre", "model_bias", "model_bias_of", "outline_points", "place", "projection_difference",
+           "projection_uncertainty", "projection_uncertainty_of", "radial", "refit_camera", "refit_splined",
+           "region_from_report", "regional", "residual_samples_of", "rotation_displacements", "suggest_arm_views",
+           "suggest_views", "verify_calibration", "views_per_region"]

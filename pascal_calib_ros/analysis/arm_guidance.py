@@ -35,13 +35,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..calibrate.handeye.chain import ChainProblem, RobotChain
-from ..calibrate.handeye.closed_form import chain_pose
-from ..calibrate.handeye.options import HandEyeResult
-from ..calibrate.options import CalibrationOptions
-from ..geometry.lens import DISTORTION_CHOICES
-from ..geometry.so3 import left_jacobian
-from ..geometry.transform import Transform
+from ..calibrate import CalibrationOptions
+from ..calibrate.handeye import ChainProblem, HandEyeResult, RobotChain, chain_pose
+from ..geometry import DISTORTION_CHOICES, Transform, left_jacobian
+from ..modes import HandEyeMode
 from ..targets import Target
 from .candidates import (
     CandidateGrid,
@@ -56,6 +53,7 @@ from .candidates import (
     transforms,
     with_ray,
 )
+from .detector_bias import BiasedPredictor, DetectorBias
 from .guidance import ChainRows, Linearisation, NoiseModel, Prediction, ViewPredictor, semi_minor_px
 from .view_ranking import RankedView, distinct_from_all, rank_candidates
 from .view_synthesis import synthesise_views
@@ -65,7 +63,7 @@ from .view_synthesis import synthesise_views
 class ArmFrames:
     """The hand-eye loop's fixed transforms (module docstring)."""
 
-    mode: str
+    mode: HandEyeMode
     X: Transform
     Y: Transform  # target YAML frame -> base (eye in hand) or -> tool (eye to hand)
 
@@ -137,6 +135,7 @@ class ArmModel:
     predictor: ViewPredictor
     frames: ArmFrames
     problem: ChainProblem
+    kappa: float = 1.0  # the edge rows' correlation factor the image rows' variances were divided by
 
 
 def _local_y(target: Target, Y_yaml: Transform) -> Transform:
@@ -147,10 +146,16 @@ def _local_y(target: Target, Y_yaml: Transform) -> Transform:
 
 def arm_model(hres: HandEyeResult, robot_poses: Sequence[Transform], target: Target, noise: NoiseModel,
               width: int, height: int,
-              options: CalibrationOptions = CalibrationOptions()) -> ArmModel:  # noqa: B008 (frozen dataclass)
+              options: CalibrationOptions = CalibrationOptions(),  # noqa: B008 (frozen dataclass)
+              bias: DetectorBias | None = None, keep_kappa: bool = True) -> ArmModel:
     """The joint problem at the hand-eye estimate (module docstring). ``robot_poses`` are the tool
     poses of the views the hand-eye calibration used, in their order; ``noise`` the image rows'
-    noise model (from the intrinsic calibration: the correlation factor included)."""
+    noise model (from the intrinsic calibration: the correlation factor kappa included). With
+    ``bias`` every view's pose carries the detector's bias (:mod:`.detector_bias`); without
+    ``keep_kappa`` the image rows' variances are divided by the refinement's kappa (what reaches X;
+    the ranking's projection term puts it back, :func:`suggest_arm_views`). Both were tried for
+    issue 36 and are off by default: in the arm study they did not lower X's errors
+    (docs/guided-sessions.md)."""
     cal = hres.calibration
     if len(robot_poses) != len(cal.poses):
         raise ValueError(f"{len(robot_poses)} robot poses for {len(cal.poses)} views used")
@@ -172,6 +177,10 @@ def arm_model(hres: HandEyeResult, robot_poses: Sequence[Transform], target: Tar
     # the image rows' variances from the noise model; the chain rows in px per sigma of the same scale
     var_img = np.concatenate([np.full(len(v.points), noise.edge_variance(semi_minor_px(v))) for v in views]
                              + [np.full(2 * len(v.corners), noise.corner) for v in views])  # edges, then corners
+    ref = cal.refinement
+    kappa = ref.kappa if not keep_kappa and ref is not None else (1.0, 1.0)
+    var_img[:prob.n_edge] /= max(kappa[0], 1e-6)
+    var_img[prob.n_edge:] /= max(kappa[1], 1e-6)
     chain.scale = float(np.sqrt(max(np.median(var_img), 1e-12)))
     n_img = prob.n_edge + 2 * prob.n_corner
     var = np.r_[var_img, np.full(6 * prob.nv, chain.scale**2)]
@@ -182,8 +191,8 @@ def arm_model(hres: HandEyeResult, robot_poses: Sequence[Transform], target: Tar
     extra = np.zeros((6, len(x)))
     extra[:, prob.n_base:prob.n_base + 6] = np.eye(6)
     lin = Linearisation(prob, x, intr0, var, w, cal.model, extra)
-    pred = ViewPredictor(lin, width, height)
-    return ArmModel(pred, ArmFrames(hres.mode, hres.hand_eye, hres.target), prob)
+    pred = ViewPredictor(lin, width, height) if bias is None else BiasedPredictor(lin, width, height, n_img, bias)
+    return ArmModel(pred, ArmFrames(hres.mode, hres.hand_eye, hres.target), prob, float(kappa[0]))
 
 
 def hand_eye_sigmas(model: ArmModel, cov: np.ndarray) -> tuple[float, float]:
@@ -314,8 +323,9 @@ def arm_candidates(model: ArmModel, target: Target, trust: TrustRegion, grid: Ca
 def suggest_arm_views(model: ArmModel, target: Target, trust: TrustRegion, n: int = 5,
                       goals: ArmGoals = ArmGoals(), grid: CandidateGrid = ARM_GRID,
                       options: CalibrationOptions = CalibrationOptions()) -> ArmSuggestions:  # noqa: B008
-    """The ``n`` best tool poses (module docstring): ranked by (sigma_px / goal)^2 +
-    (sigma_rot / goal)^2 + (sigma_trans / goal)^2 of X, from the first suggestion on."""
+    """The ``n`` best tool poses (module docstring): ranked by kappa (sigma_px / goal)^2 +
+    (sigma_rot / goal)^2 + (sigma_trans / goal)^2 of X, from the first suggestion on (kappa the
+    factor :func:`arm_model` took out of the image rows: the intrinsics' variances scale with it)."""
     pred = model.predictor
     now = pred.sigma_now()
     deg_now, mm_now = hand_eye_sigmas(model, pred.cov_now)
@@ -323,8 +333,8 @@ def suggest_arm_views(model: ArmModel, target: Target, trust: TrustRegion, n: in
 
     def score(p: Prediction, idx: list[int]) -> np.ndarray:
         deg, mm = hand_eye_sigmas(model, p.readout_cov)
-        return np.asarray((p.sigma_px / goals.sigma_px) ** 2 + (np.asarray(deg) / goals.rotation_deg) ** 2
-                          + (np.asarray(mm) / goals.translation_mm) ** 2)
+        return np.asarray(model.kappa * (p.sigma_px / goals.sigma_px) ** 2
+                          + (np.asarray(deg) / goals.rotation_deg) ** 2 + (np.asarray(mm) / goals.translation_mm) ** 2)
 
     ranked = rank_candidates(pred, target, cands, n, options, score,
                              chain_of=lambda idx: chain_rows(model, [tools[i] for i in idx]),

@@ -35,22 +35,31 @@ from __future__ import annotations
 import json
 import sys
 import time
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from ..analysis.arm_guidance import ArmGoals, TrustRegion, arm_model, suggest_arm_views
-from ..analysis.candidates import Placement, distance_for_size, place
-from ..analysis.guidance import Linearisation, ViewPredictor
-from ..calibrate.handeye.options import HandEyeOptions, HandEyeResult
-from ..calibrate.handeye.session import calibrate_hand_eye
-from ..calibrate.result import CalibrationError
-from ..detect.target_detector import detect_target
-from ..geometry.transform import Transform
-from ..sim.arm import DEFAULT_HAND_EYE, DEFAULT_TARGET, ArmSpec, arm_poses, hand_eye_errors
-from ..sim.render import Pose, SensorModel, render_view
+from ..analysis import (
+    ArmGoals,
+    DetectorBias,
+    Linearisation,
+    Placement,
+    TrustRegion,
+    ViewPredictor,
+    arm_model,
+    distance_for_size,
+    place,
+    suggest_arm_views,
+)
+from ..calibrate import CalibrationError
+from ..calibrate.handeye import HandEyeOptions, HandEyeResult, calibrate_hand_eye
+from ..detect import detect_target
+from ..geometry import Transform
+from ..modes import HandEyeMode
+from ..sim import DEFAULT_HAND_EYE, DEFAULT_TARGET, ArmSpec, Pose, SensorModel, arm_poses, hand_eye_errors, render_view
 from ..targets import Target, resolve_target
 from .guided_errors import true_errors
 
@@ -58,7 +67,7 @@ ARM_N = (6, 8, 10, 12, 14, 17, 20)
 ARM_STRATEGIES = ("guided", "designed", "random", "easy_handeye")
 REDRAW_N = (8, 12, 20)
 REDRAW_STRATEGIES = ("guided", "designed", "random")  # easy_handeye's X is off by degrees: nothing to average
-MODE = "eye_in_hand"
+MODE = HandEyeMode.EYE_IN_HAND
 # what the guide is asked for (it ranks by (sigma / goal)^2 summed over the three; the projection goal
 # below what the designed 20 views give in the image's corners, X's below their 0.0133 deg / 0.085 mm in
 # the guide's model). Asking for those sigmas instead weighted the ranking toward the translation and
@@ -66,6 +75,34 @@ MODE = "eye_in_hand"
 # candidates: docs/guided-sessions.md)
 GUIDED_GOALS = ArmGoals(0.05, 0.005, 0.05)
 NO_JACKKNIFE = HandEyeOptions(mode=MODE, jackknife_groups=0)  # the redraws need X, not its sigma (the same X)
+
+
+@dataclass(frozen=True)
+class CellNoise:
+    """The cell's noise levels: the renders' sensor noise (grey levels) and the arm's per axis and
+    pose. The default is the study's cell; an arm-dominated cell (issue 36: X's rotation error set
+    by the arm's share) is e.g. ``CellNoise(0.5, 0.03, 0.3)``."""
+
+    sensor_noise: float = 1.5
+    noise_deg: float = 0.01
+    noise_mm: float = 0.1
+
+    def spec(self, seed: int, quick: bool) -> ArmSpec:
+        """The cell's :class:`..sim.arm.ArmSpec` (no systematic arm error)."""
+        return ArmSpec(mode=MODE, width=640 if quick else 800, height=480 if quick else 600, k1=-0.1, seed=seed,
+                       systematic_mm=0.0, sensor_noise=self.sensor_noise, noise_deg=self.noise_deg,
+                       noise_mm=self.noise_mm)
+
+
+@dataclass(frozen=True)
+class GuideModel:
+    """How the guide's model treats the images (:func:`..analysis.arm_guidance.arm_model`): the
+    detector's bias (None: none) and whether the image rows keep the refinement's kappa. The
+    default is the shipped guide; issue 36's variants are e.g. ``GuideModel(DETECTOR_BIAS)``
+    (kappa kept, the bias added) and ``GuideModel(DETECTOR_BIAS, False)`` (kappa out)."""
+
+    bias: DetectorBias | None = None
+    keep_kappa: bool = True
 
 
 def designed_views(target: Target, spec: ArmSpec) -> list[Transform]:
@@ -158,11 +195,11 @@ def _plan(strategy: str, cell: ArmCell, seed: int) -> list[Transform]:
 
 
 def run_arm_session(strategy: str, seed: int, target_name: str = "ring_grid_a4", quick: bool = False,
-                    n_max: int = 20) -> dict[str, Any]:
-    """One arm session (module docstring)."""
+                    n_max: int = 20, noise: CellNoise = CellNoise(), guide: GuideModel = GuideModel()
+                    ) -> dict[str, Any]:
+    """One arm session (module docstring) in the cell ``noise``, the guide's model ``guide``."""
     target = resolve_target(target_name)
-    spec = ArmSpec(mode=MODE, width=640 if quick else 800, height=480 if quick else 600, k1=-0.1, seed=seed,
-                   systematic_mm=0.0)
+    spec = noise.spec(seed, quick)
     cell = ArmCell(target, spec, seed)
     dets: list[Any] = []
     tools: list[Transform] = []
@@ -179,7 +216,7 @@ def run_arm_session(strategy: str, seed: int, target_name: str = "ring_grid_a4",
             tool = plan[k]
             k += 1
         else:
-            suggested = _guided_next(h, dets, tools, target, spec)
+            suggested = _guided_next(h, dets, tools, target, spec, guide)
             if suggested is None:
                 break
             tool = suggested
@@ -196,7 +233,7 @@ def run_arm_session(strategy: str, seed: int, target_name: str = "ring_grid_a4",
                 curve[str(n)] = figures
     return {"strategy": strategy, "seed": seed, "target": target_name, "curve": curve, "shots": cell.shots,
             "views": len(dets), "seconds": time.perf_counter() - t_start,
-            "commanded": [[*t.translation, *t.quat] for t in commanded]}
+            "commanded": [[*t.translation, *t.quat] for t in commanded], "noise": asdict(noise)}
 
 
 def redraw_session(row: dict[str, Any], draws: int, quick: bool = False) -> dict[str, Any]:
@@ -205,8 +242,7 @@ def redraw_session(row: dict[str, Any], draws: int, quick: bool = False) -> dict
     :data:`REDRAW_N` on the first N usable views: per N the figures of each draw."""
     target = resolve_target(row["target"])
     seed = int(row["seed"])
-    spec = ArmSpec(mode=MODE, width=640 if quick else 800, height=480 if quick else 600, k1=-0.1, seed=seed,
-                   systematic_mm=0.0)
+    spec = CellNoise(**row.get("noise", {})).spec(seed, quick)
     poses = [Transform.from_quat(c[3:], c[:3]) for c in row["commanded"]]
     out: dict[str, list[dict[str, Any]]] = {str(n): [] for n in REDRAW_N if n <= len(poses)}
     for d in range(draws):
@@ -225,19 +261,20 @@ def redraw_session(row: dict[str, Any], draws: int, quick: bool = False) -> dict
 
 
 def _guided_next(h: HandEyeResult | None, dets: list[Any], tools: list[Transform], target: Target,
-                 spec: ArmSpec) -> Transform | None:
+                 spec: ArmSpec, guide: GuideModel) -> Transform | None:
     """The guide's best tool pose from the latest hand-eye calibration (None: none)."""
     if h is None or h.calibration.refinement is None:
         return None
     used = [i for i, v in enumerate(h.per_view) if v.used]
     ref = h.calibration.refinement
     noise = ViewPredictor(Linearisation.of_refinement(ref), spec.width, spec.height).noise
-    model = arm_model(h, [tools[i] for i in used], target, noise, spec.width, spec.height)
+    model = arm_model(h, [tools[i] for i in used], target, noise, spec.width, spec.height, bias=guide.bias,
+                      keep_kappa=guide.keep_kappa)
     s = suggest_arm_views(model, target, TrustRegion(tuple(tools)), n=1, goals=GUIDED_GOALS)
     return s.suggestions[0].tool if s.suggestions else None
 
 
-def _task(args: tuple[str, int, str, bool]) -> dict[str, Any]:
+def _task(args: tuple[str, int, str, bool, int, CellNoise, GuideModel]) -> dict[str, Any]:
     with threadpool_limits(1, "blas"):
         return run_arm_session(*args)
 
@@ -316,15 +353,19 @@ def summarise_arm(rows: list[dict[str, Any]]) -> str:
 
 
 def run_arm_study(out: Path, seeds: int, quick: bool, jobs: int, target_name: str = "ring_grid_a4",
-                  draws: int = 0) -> str:
+                  draws: int = 0, noise: CellNoise = CellNoise(),
+                  strategies: tuple[str, ...] = ARM_STRATEGIES, n_max: int = 20, guide: GuideModel = GuideModel()
+                  ) -> str:
     """Run the arm sessions (resumable: ``guided_arm_sessions.jsonl``), then with ``draws`` their
-    views again under fresh noise (``guided_arm_redraws.jsonl``); the tables."""
+    views again under fresh noise (``guided_arm_redraws.jsonl``); the tables. ``noise``: the cell's
+    noise levels; ``strategies`` and ``n_max`` (views per session) to run less; ``guide`` the guided
+    sessions' model (:class:`GuideModel`)."""
     import multiprocessing as mp
 
     part = out / "guided_arm_sessions.jsonl"
     rows = [json.loads(line) for line in part.read_text().splitlines()] if part.exists() else []
     have = {(r["strategy"], r["seed"]) for r in rows}
-    todo = [(st, seed, target_name, quick) for seed in range(1, seeds + 1) for st in ARM_STRATEGIES
+    todo = [(st, seed, target_name, quick, n_max, noise, guide) for seed in range(1, seeds + 1) for st in strategies
             if (st, seed) not in have]
     t0 = time.perf_counter()
     sys.stderr.write(f"arm study: {len(todo)} sessions to run ({len(rows)} kept)\n")

@@ -53,3 +53,26 @@ def test_redrawn_views_average_the_noise_of_one_session() -> None:
         assert f["rot_err_deg"] < 0.1 and f["trans_err_mm"] < 1.0 and f["used"] == 8
     table = summarise_redraws([r])
     assert "| designed | 1 | 8 |" in table
+
+
+def test_the_cells_noise_levels_reach_the_renders_and_the_arm() -> None:
+    """A cell's noise levels (``CellNoise``) set the spec, the arm reports the commanded pose
+    without arm noise, and a redrawn session keeps its cell's noise (an arm off by 1 degree per
+    axis spoils X, a quiet one does not)."""
+    from pascal_calib_ros.studies.guided_arm import CellNoise, redraw_session
+
+    spec = CellNoise(0.5, 0.03, 0.3).spec(4, quick=True)
+    assert (spec.sensor_noise, spec.noise_deg, spec.noise_mm, spec.systematic_mm) == (0.5, 0.03, 0.3, 0.0)
+    assert (spec.width, spec.height, spec.seed) == (640, 480, 4)
+    target = resolve_target("ring_grid_a4")
+    quiet = CellNoise(0.0, 0.0, 0.0)
+    cell = ArmCell(target, quiet.spec(3, True), 3)
+    tools = [cell.tool_of(C) for C in designed_views(target, quiet.spec(3, True))[:8]]
+    _, reported = cell.shoot(tools[0])
+    np.testing.assert_allclose(reported.matrix, tools[0].matrix, atol=1e-12)
+    errors = []
+    for arm_deg in (0.0, 1.0):
+        row = {"strategy": "designed", "seed": 3, "target": "ring_grid_a4", "noise": {"sensor_noise": 0.0,
+               "noise_deg": arm_deg, "noise_mm": 0.0}, "commanded": [[*t.translation, *t.quat] for t in tools]}
+        errors.append(redraw_session(row, draws=1, quick=True)["redraw"]["8"][0]["rot_err_deg"])
+    assert errors[0] < 0.03 < 0.2 < errors[1]
