@@ -41,6 +41,7 @@ from ..geometry import DISTORTION_CHOICES, Transform, left_jacobian
 from ..modes import HandEyeMode
 from ..targets import Target
 from .candidates import (
+    Candidate,
     CandidateGrid,
     Feasibility,
     Placement,
@@ -297,7 +298,7 @@ def local_placements(model: ArmModel, target: Target, trust: TrustRegion) -> lis
 
 
 def arm_candidates(model: ArmModel, target: Target, trust: TrustRegion, grid: CandidateGrid = ARM_GRID,
-                   rules: Feasibility | None = None) -> tuple[list[tuple[Placement, Transform]], list[Transform]]:
+                   rules: Feasibility | None = None) -> tuple[list[Candidate], list[Transform]]:
     """Feasible views whose tool pose lies in the trust region, and those tool poses: the grid's
     placements and placements near the visited views (:func:`local_placements`)."""
     cam = model.predictor.camera_sized
@@ -316,7 +317,7 @@ def arm_candidates(model: ArmModel, target: Target, trust: TrustRegion, grid: Ca
     if seen and len(keep):
         new = distinct_from_all(placed, seen, cam.width, cam.height, roll_deg=DISTINCT_ROLL_DEG)
         keep, placed = keep[new], [p for p, n in zip(placed, new, strict=True) if n]
-    return (list(zip(placed, transforms(R[keep], t[keep]), strict=True)),
+    return ([Candidate(p, T) for p, T in zip(placed, transforms(R[keep], t[keep]), strict=True)],
             transforms(GR[keep], Gt[keep]))
 
 

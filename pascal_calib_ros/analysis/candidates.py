@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -79,6 +80,13 @@ def feature_extent(target: Target) -> float:
     """The features' larger bounding-box side (m)."""
     p = outline_points(target)
     return float(np.max(p.max(0) - p.min(0)))
+
+
+class Candidate(NamedTuple):
+    """A candidate view: where the target is asked to be, and its camera_T_target there."""
+
+    placement: Placement
+    pose: Transform
 
 
 def place(target: Target, camera: Camera, p: Placement) -> Transform:
@@ -389,12 +397,12 @@ def with_ray(camera: Camera, placements: list[Placement]) -> list[Placement]:
 
 
 def feasible_candidates(target: Target, camera: Camera, placements: list[Placement], rules: Feasibility
-                        ) -> list[tuple[Placement, Transform]]:
+                        ) -> list[Candidate]:
     """The placements whose pose passes the rules (:func:`feasibility_problems`), with their poses."""
     ok = with_ray(camera, placements)
     poses = place_all(target, camera, ok)
     problems = feasibility_problems(target, camera, poses, rules)
-    return [(p, pose) for p, pose, why in zip(ok, poses, problems, strict=True) if not why]
+    return [Candidate(p, pose) for p, pose, why in zip(ok, poses, problems, strict=True) if not why]
 
 
 def partial_placements(camera: Camera, target: Target) -> list[Placement]:

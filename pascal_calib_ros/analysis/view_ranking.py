@@ -18,6 +18,7 @@ from ..calibrate import CalibrationOptions, PlanePose, RefineResult, pose_to_par
 from ..geometry import Camera, Transform
 from ..targets import Target
 from .candidates import (
+    Candidate,
     CandidateGrid,
     Feasibility,
     Placement,
@@ -28,7 +29,7 @@ from .candidates import (
     partial_placements,
     placement_of,
 )
-from .guidance import Linearisation, Prediction, ViewPredictor
+from .guidance import ChainRows, Linearisation, Prediction, ViewPredictor
 from .view_synthesis import synthesise_views
 
 COARSE_POINTS = 24  # points per edge in the first pass
@@ -60,17 +61,17 @@ def yaml_pose(target: Target, R: np.ndarray, t: np.ndarray) -> Transform:
 
 
 def predict_poses(pred: ViewPredictor, target: Target, poses: list[Transform], options: CalibrationOptions,
-                  coarse: bool = False, chain: object = None) -> Prediction:
+                  coarse: bool = False, chain: ChainRows | None = None) -> Prediction:
     """:meth:`ViewPredictor.predict` for views of ``target`` at ``poses`` (camera_T_target)."""
     if not poses:
-        return pred.predict([], np.zeros((0, pred.prob.dof)), [], COARSE_GRID if coarse else 1, chain)  # type: ignore[arg-type]
+        return pred.predict([], np.zeros((0, pred.prob.dof)), [], COARSE_GRID if coarse else 1, chain)
     Rt = [local_pose(target, pose) for pose in poses]
     R, t = np.stack([r for r, _ in Rt]), np.stack([t for _, t in Rt])
     synth = synthesise_views(target, pred.camera_sized, R, t, options, COARSE_POINTS if coarse else 0,
                              COARSE_ELEMENTS if coarse else 0)
     params = np.array([pose_to_params(PlanePose(Ri, ti), pred.prob.dof) for Ri, ti in Rt])
     return pred.predict([sv.data for sv in synth], params, [sv.weight for sv in synth], COARSE_GRID if coarse else 1,
-                        chain)  # type: ignore[arg-type]
+                        chain)
 
 
 DISTINCT_TILT_DEG = 20.0  # tilts (as vectors: magnitude along the axis' direction) this far apart differ
@@ -110,9 +111,9 @@ def pick_distinct(ranked: list[RankedView], n: int, width: int, height: int, rol
 Scorer = Callable[[Prediction, list[int]], np.ndarray]
 
 
-def rank_candidates(pred: ViewPredictor, target: Target, candidates: list[tuple[Placement, Transform]], n: int,
+def rank_candidates(pred: ViewPredictor, target: Target, candidates: list[Candidate], n: int,
                     options: CalibrationOptions = CalibrationOptions(),  # noqa: B008 (frozen dataclass)
-                    score: Scorer | None = None, chain_of: Callable[[list[int]], object] | None = None,
+                    score: Scorer | None = None, chain_of: Callable[[list[int]], ChainRows] | None = None,
                     roll_deg: float = 0.0) -> list[RankedView]:
     """The ``n`` best distinct candidates by ``score`` (default: the predicted worst projection
     sigma), the two passes of the module docstring. ``chain_of(indices)`` gives the robot chain
@@ -121,7 +122,7 @@ def rank_candidates(pred: ViewPredictor, target: Target, candidates: list[tuple[
     if not candidates:
         return []
     score = score or (lambda p, idx: p.sigma_px)
-    poses = [c[1] for c in candidates]
+    poses = [c.pose for c in candidates]
     idx = list(range(len(candidates)))
     first = predict_poses(pred, target, poses, options, coarse=True, chain=chain_of(idx) if chain_of else None)
     order = np.argsort(score(first, idx), kind="stable")
@@ -129,7 +130,7 @@ def rank_candidates(pred: ViewPredictor, target: Target, candidates: list[tuple[
     exact = predict_poses(pred, target, [poses[i] for i in keep], options,
                           chain=chain_of(keep) if chain_of else None)
     s = score(exact, keep)
-    ranked = [RankedView(poses[i], candidates[i][0], float(exact.sigma_px[j]), exact.readout_cov[j], float(s[j]))
+    ranked = [RankedView(poses[i], candidates[i].placement, float(exact.sigma_px[j]), exact.readout_cov[j], float(s[j]))
               for j, i in enumerate(keep)]
     ranked.sort(key=lambda r: r.score)
     return pick_distinct(ranked, n, pred.width, pred.height, roll_deg)
@@ -161,8 +162,8 @@ def captured_placements(target: Target, camera: Camera, R: np.ndarray, t: np.nda
     return [placement_of(target, camera, yaml_pose(target, Ri, ti)) for Ri, ti in zip(R, t, strict=True)]
 
 
-def unseen(candidates: list[tuple[Placement, Transform]], seen: list[Placement], width: int, height: int,
-           roll_deg: float = 0.0) -> list[tuple[Placement, Transform]]:
+def unseen(candidates: list[Candidate], seen: list[Placement], width: int, height: int,
+           roll_deg: float = 0.0) -> list[Candidate]:
     """The candidates distinct (:func:`distinct`) from every captured view. The covariance knows
     only the noise that averages out; a view taken again where one was taken repeats that view's
     detection biases (which do not), so the guide offers something new."""
