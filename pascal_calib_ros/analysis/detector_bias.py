@@ -178,17 +178,9 @@ class BiasedPredictor(ViewPredictor):
         """The guidance module's update (Schur complement and Woodbury identity) plus the cross
         terms rho (s D_n^T + D_n s^T) between the candidate's bias and the views' (d: D_n's rows
         on the globals and on the new view)."""
-        Ai = np.linalg.pinv(AA)
-        S = UA - GA @ Ai @ GA.T
-        Rn = ln.T
-        r = GA @ Ai @ Rn
-        Mk = r + np.linalg.solve(np.eye(self.ng) + S @ self.H, S @ (self.Y0[:self.ng] - self.H @ r))
-        Zg = self.Y0[:self.ng] - self.H @ Mk
-        Zn = Ai @ (Rn - GA.T @ Zg)
-        old = self.Q00 - self.Q01 @ Mk - Mk.T @ self.Q01.T + Mk.T @ self.Q11 @ Mk
-        new = Zg.T @ UB @ Zg + Zg.T @ GB @ Zn + Zn.T @ GB.T @ Zg + Zn.T @ AB @ Zn
+        Mk, Zg, Zn, plain = self._update_terms(UA, GA, AA, UB, GB, AB, ln)
         Zs = self.Ys - Mk.T @ self.AEs  # Z_o^T s (k, 6)
         Dz = d[0].T @ Zg + d[1].T @ Zn  # D_n^T Z' (6, k)
         cross = self.bias.rho * Zs @ Dz
-        out = old + new + cross + cross.T
+        out = plain + cross + cross.T
         return 0.5 * (out + out.T)

@@ -250,6 +250,13 @@ class ViewPredictor:
                  AB: np.ndarray, ln: np.ndarray) -> np.ndarray:
         """L' Sigma' L'^T after a view with information blocks (U, Gv, Ann) of A and of B and
         new-pose readout ``ln`` (k, per_view) (module docstring)."""
+        out = self._update_terms(UA, GA, AA, UB, GB, AB, ln)[3]
+        return 0.5 * (out + out.T)
+
+    def _update_terms(self, UA: np.ndarray, GA: np.ndarray, AA: np.ndarray, UB: np.ndarray, GB: np.ndarray,
+                      AB: np.ndarray, ln: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`_updated`'s Schur complement and Woodbury update: (M_k, Z_g, Z_n, L' Sigma' L'^T
+        before symmetrising), for a subclass that adds terms (:mod:`.detector_bias`)."""
         Ai = np.linalg.pinv(AA)
         S = UA - GA @ Ai @ GA.T
         Rn = ln.T  # (pv, k)
@@ -259,8 +266,7 @@ class ViewPredictor:
         Zn = Ai @ (Rn - GA.T @ Zg)
         old = self.Q00 - self.Q01 @ Mk - Mk.T @ self.Q01.T + Mk.T @ self.Q11 @ Mk
         new = Zg.T @ UB @ Zg + Zg.T @ GB @ Zn + Zn.T @ GB.T @ Zg + Zn.T @ AB @ Zn
-        out = old + new
-        return 0.5 * (out + out.T)
+        return Mk, Zg, Zn, old + new
 
 
 @dataclass(frozen=True)
