@@ -16,7 +16,7 @@ $(STAMP): requirements.txt setup.py setup.cfg package.xml $(wildcard tools/msg_p
 	$(PY) -m pip install --quiet --no-deps -e .
 	$(PY) tools/build_msg_package.py --venv $(VENV)  # tf2_msgs (no wheel on PyPI) from its definition, ~10-20 s
 	$(PY) -m pascal_calib_ros.detect.edge_kernels  # compile the detection kernels once (numba caches them)
-	$(PY) -m pascal_calib_ros.calibrate.edge_row_kernels  # and the refinement's
+	$(PY) -m pascal_calib_ros.calibrate.solver.edge_row_kernels  # and the refinement's
 	touch $(STAMP)
 
 demo: $(STAMP)

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pascal_calib_ros.calibrate.options import CalibrationOptions
-from pascal_calib_ros.calibrate.rig import RigOptions, RigResult, calibrate_rig
+from pascal_calib_ros.calibrate.intrinsic.options import CalibrationOptions
+from pascal_calib_ros.calibrate.rig.calibration import RigOptions, RigResult, calibrate_rig
 from pascal_calib_ros.detect.detection import Detection, DetectionParams
 from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.sim.rig import RigSession, RigSpec, render_rig, stereo_pair

@@ -8,7 +8,7 @@ say why and the rest still runs.
 
 Rows, each on the views where its own corners were found:
 
-- ``ours``: :func:`pascal_calib_ros.calibrate.pipeline.calibrate` with the target's default method,
+- ``ours``: :func:`pascal_calib_ros.calibrate.intrinsic.pipeline.calibrate` with the target's default method,
   and ``ours, refine off`` with ``CalibrationOptions(refine=False)`` (today the default for a
   checkerboard is OpenCV's calibrateCamera, "zhang", and the two rows agree);
 - ``opencv <corners>``: ``cv2.calibrateCamera`` on (a) our detector's corners, (b)
@@ -37,10 +37,10 @@ from typing import Any
 import cv2
 import numpy as np
 
-from pascal_calib_ros.analysis.uncertainty import ProjectionUncertainty, projection_uncertainty_of
-from pascal_calib_ros.calibrate.options import CalibrationOptions
-from pascal_calib_ros.calibrate.pipeline import calibrate
-from pascal_calib_ros.calibrate.result import CalibrationError
+from pascal_calib_ros.analysis.statistics.uncertainty import ProjectionUncertainty, projection_uncertainty_of
+from pascal_calib_ros.calibrate.intrinsic.options import CalibrationOptions
+from pascal_calib_ros.calibrate.intrinsic.pipeline import calibrate
+from pascal_calib_ros.calibrate.intrinsic.result import CalibrationError
 from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.geometry.image_field import grid_pixels, grid_shape, observed_field_mask
 from pascal_calib_ros.io.images import read_grey

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from pascal_calib_ros.calibrate.options import CalibrationOptions
+from pascal_calib_ros.calibrate.intrinsic.options import CalibrationOptions
 from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.session.guided_live import GuidedLive
 from pascal_calib_ros.sim.arm import ArmSpec, simulate_arm_session

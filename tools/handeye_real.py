@@ -35,7 +35,7 @@ import cv2
 import numpy as np
 
 from pascal_calib_ros.calibrate.handeye import calibrate_hand_eye
-from pascal_calib_ros.calibrate.result import CalibrationError
+from pascal_calib_ros.calibrate.intrinsic.result import CalibrationError
 from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.geometry.transform import Transform
 from pascal_calib_ros.report.text import hand_eye_summary

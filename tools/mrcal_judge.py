@@ -29,7 +29,7 @@ Intrinsics travel as ``{"fx", "fy", "cx", "cy", "D"}`` with D in ROS order: plum
 (k1, k2, p1, p2, k3, k4, k5, k6) LENSMODEL_OPENCV8's: the same numbers in the same order.
 
 Projection uncertainty (``grid``: (M, 2) pixels): as the project's
-``calibrate/uncertainty.projection_uncertainty`` defines it, the point at ``distance`` metres along
+``analysis/statistics/uncertainty.projection_uncertainty`` defines it, the point at ``distance`` metres along
 the pixel's unit ray (range, not depth: ``mrcal.unproject(..., normalize=True) * distance``), its
 2x2 covariance by ``mrcal.projection_uncertainty`` (method ``mean-pcam``: the point carried through
 every frame's pose and averaged), worst direction sqrt(lambda_max) ('worstdirection-stdev'); and

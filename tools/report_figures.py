@@ -16,9 +16,9 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from pascal_calib_ros.analysis.assessment import assess
-from pascal_calib_ros.calibrate.options import CalibrationOptions
-from pascal_calib_ros.calibrate.pipeline import calibrate
+from pascal_calib_ros.analysis.statistics.assessment import assess
+from pascal_calib_ros.calibrate.intrinsic.options import CalibrationOptions
+from pascal_calib_ros.calibrate.intrinsic.pipeline import calibrate
 from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.report.pages import write_report
 from pascal_calib_ros.sim.session import render_session_views

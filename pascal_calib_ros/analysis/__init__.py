@@ -1,9 +1,8 @@
 """What a calibration is worth: projection uncertainty (mrcal's), residual statistics and the
 model-bias verdict, cross-validation of two halves, the projection difference of two cameras."""
 
-from .arm_guidance import DISTINCT_ROLL_DEG, ArmGoals, TrustRegion, arm_model, suggest_arm_views
-from .assessment import Assessment, assess, model_bias_of, residual_samples_of
-from .candidates import (
+from .guide.arm_guidance import DISTINCT_ROLL_DEG, ArmGoals, TrustRegion, arm_model, suggest_arm_views
+from .guide.candidates import (
     Feasibility,
     Placement,
     bootstrap_placements,
@@ -14,14 +13,15 @@ from .candidates import (
     outline_points,
     place,
 )
-from .compare import CompareError, ProjectionDiff, projection_difference, region_from_report
-from .cross_validation import CrossValidation, cross_validate, difference_share
-from .detector_bias import DetectorBias
-from .epipolar import epipolar_rms, epipolar_samples
-from .guidance import Linearisation, ViewPredictor
-from .refit import DEFAULT_MAX_ERROR_PX, RefitError, RefitResult, refit_camera
-from .refit_splined import CHOICE, refit_splined
-from .residual_stats import (
+from .guide.detector_bias import DetectorBias
+from .guide.guidance import Linearisation, ViewPredictor
+from .guide.view_ranking import RankedView, distinct_from_all, suggest_views
+from .refits.refit import DEFAULT_MAX_ERROR_PX, RefitError, RefitResult, refit_camera
+from .refits.refit_splined import CHOICE, refit_splined
+from .statistics.assessment import Assessment, assess, model_bias_of, residual_samples_of
+from .statistics.compare import CompareError, ProjectionDiff, projection_difference, region_from_report
+from .statistics.cross_validation import CrossValidation, cross_validate, difference_share
+from .statistics.residual_stats import (
     MIN_EFFECTIVE,
     RADIAL_FLOOR_PX,
     REGIONAL_FLOOR_PX,
@@ -34,18 +34,18 @@ from .residual_stats import (
     regional,
     views_per_region,
 )
-from .rig import assess_rig
-from .uncertainty import (
+from .statistics.rig import assess_rig
+from .statistics.uncertainty import (
     ProjectionUncertainty,
     projection_uncertainty,
     projection_uncertainty_of,
     rotation_displacements,
 )
-from .verification import CHANGED, Verification, verify_calibration
-from .verify import DEFAULT_ALPHA
-from .verify_hand_eye import HandEyeReference
-from .verify_views import VerifyError
-from .view_ranking import RankedView, distinct_from_all, suggest_views
+from .verification.epipolar import epipolar_rms, epipolar_samples
+from .verification.fixed_views import VerifyError
+from .verification.hand_eye import HandEyeReference
+from .verification.intrinsics import DEFAULT_ALPHA
+from .verification.verdict import CHANGED, Verification, verify_calibration
 
 __all__ = ["CHANGED", "CHOICE", "DEFAULT_ALPHA", "DEFAULT_MAX_ERROR_PX", "DISTINCT_ROLL_DEG", "MIN_EFFECTIVE",
            "RADIAL_FLOOR_PX", "REGIONAL_FLOOR_PX", "ArmGoals", "Assessment", "CompareError", "CrossValidation",

@@ -2,16 +2,16 @@
 points, grid homographies, OpenCV's Zhang), the joint refinement with outlier rejection, the
 pipeline that chains them (:func:`calibrate`), hand-eye (:mod:`.handeye`). No I/O, no threads."""
 
-from .initial import PlanePose, pose_from_view, pose_to_params
-from .lm import levenberg_marquardt
-from .observations import ViewData, observations
-from .options import METHODS, MIN_VIEWS, CalibrationOptions
-from .pipeline import calibrate, target_shape_frame
-from .problem import DISTORTION_MODELS, SHAPE_CHOICES, SHAPE_NAMES, Problem, intrinsic_names
-from .refine import OUTLIER_K, RefineResult, refine
-from .result import CalibrationError, CalibrationResult, ViewReport
-from .rig import RigOptions, RigResult, calibrate_rig
-from .warm import IntrinsicStart, calibrate_warm
+from .intrinsic.initial import PlanePose, pose_from_view, pose_to_params
+from .intrinsic.options import METHODS, MIN_VIEWS, CalibrationOptions
+from .intrinsic.pipeline import calibrate, target_shape_frame
+from .intrinsic.result import CalibrationError, CalibrationResult, ViewReport
+from .intrinsic.warm import IntrinsicStart, calibrate_warm
+from .rig.calibration import RigOptions, RigResult, calibrate_rig
+from .solver.lm import levenberg_marquardt
+from .solver.observations import ViewData, observations
+from .solver.problem import DISTORTION_MODELS, SHAPE_CHOICES, SHAPE_NAMES, Problem, intrinsic_names
+from .solver.refine import OUTLIER_K, RefineResult, refine
 
 __all__ = ["DISTORTION_MODELS", "METHODS", "MIN_VIEWS", "OUTLIER_K", "SHAPE_CHOICES", "SHAPE_NAMES", "CalibrationError",
            "CalibrationOptions", "CalibrationResult", "IntrinsicStart", "PlanePose", "Problem", "RefineResult",

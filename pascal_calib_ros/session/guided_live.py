@@ -240,7 +240,7 @@ class GuidedLive:
         if len(ok) >= MIN_VIEWS:
             try:
                 with threadpool_limits(1, "blas"):  # small dense products: one thread is faster on a shared machine
-                    # warm from the last recalibration when the views only grew (calibrate/warm.py: the
+                    # warm from the last recalibration when the views only grew (calibrate/intrinsic/warm.py: the
                     # cold result to the solver's tolerance), cold otherwise
                     result, start = calibrate_warm(ok, self.target, self.options, start)
                 refinement = result.refinement

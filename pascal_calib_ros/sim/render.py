@@ -45,7 +45,7 @@ class Pose:
 
 @dataclass(frozen=True)
 class SheetShape:
-    """How the printed sheet departs from its nominal geometry (the model of calibrate/refine.py):
+    """How the printed sheet departs from its nominal geometry (the model of calibrate/solver/refine.py):
     y printed (1 + pitch_ratio) times longer than nominal (about the frame's middle), and the
     sheet bent out of its plane by z = warp_x (1 - ux^2) + warp_y (1 - uy^2) metres, with ux, uy
     running from -1 to 1 across ``frame`` = (x mid, y mid, x half-width, y half-width)."""

@@ -42,7 +42,7 @@ from .guided_strategies import STRATEGIES, PersonError, SessionState, make_strat
 EVAL_N = (3, 4, 5, 6, 7, 8, 9, 10, 12, 14, 16, 20)
 REPORT_N = (8, 12, 20)
 # the guide's recalibrations: cold, as each `pascal-calib suggest` call (the figures of docs/guided-sessions.md);
-# True: warm from the last one where that applies, as the node (calibrate/warm.py; the wide case's ablation)
+# True: warm from the last one where that applies, as the node (calibrate/intrinsic/warm.py; the wide case's ablation)
 GUIDE_WARM = False
 DONE_GOALS = {"ring": (0.2, 0.1, 0.05), "wide": (0.3, 0.2, 0.1), "grid": (0.3, 0.2, 0.1), "board": (0.2, 0.1, 0.05),
               "fisheye": (0.5, 0.3, 0.2), "charuco": (0.2, 0.1, 0.05)}

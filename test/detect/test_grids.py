@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pascal_calib_ros.calibrate.pipeline import calibrate
+from pascal_calib_ros.calibrate.intrinsic.pipeline import calibrate
 from pascal_calib_ros.detect.detection import Detection
 from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.geometry.camera import Camera, model_error

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from export_cases import FISHEYE, PLUMB, RATIONAL, grid_points
 
-from pascal_calib_ros.analysis.refit_splined import refit_splined
+from pascal_calib_ros.analysis.refits.refit_splined import refit_splined
 from pascal_calib_ros.geometry.camera import Camera
 from pascal_calib_ros.io.format_error import CalibrationFileError
 from pascal_calib_ros.io.mrcal_model import (

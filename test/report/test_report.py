@@ -7,8 +7,8 @@ import pytest
 from matplotlib.path import Path as MplPath
 from scipy.spatial import ConvexHull
 
-from pascal_calib_ros.analysis.assessment import assess
-from pascal_calib_ros.calibrate.pipeline import calibrate
+from pascal_calib_ros.analysis.statistics.assessment import assess
+from pascal_calib_ros.calibrate.intrinsic.pipeline import calibrate
 from pascal_calib_ros.geometry.camera import Camera
 from pascal_calib_ros.geometry.model_field import distortion_field
 from pascal_calib_ros.io.printable import write_printable
@@ -106,7 +106,7 @@ def test_a_printed_marker_board_reads_back_with_its_ids_where_the_layout_puts_th
 
 
 def test_report_of_an_unrefined_calibration_has_every_page(tmp_path: Path, ring_target: Target, ring_session) -> None:
-    from pascal_calib_ros.calibrate.options import CalibrationOptions
+    from pascal_calib_ros.calibrate.intrinsic.options import CalibrationOptions
 
     _cam, _, dets = ring_session
     res = calibrate(dets, ring_target, CalibrationOptions(refine=False))  # closed form only: no residuals

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from pascal_calib_ros.calibrate.result import CalibrationResult
+from pascal_calib_ros.calibrate.intrinsic.result import CalibrationResult
 from pascal_calib_ros.geometry.camera import rectified_projection
 from pascal_calib_ros.ros.conversions import camera_info_msg
 from pascal_calib_ros.workflows.outputs import camera_info_data

@@ -28,7 +28,7 @@ from ros_harness import (
     status_subscription,
 )
 
-from pascal_calib_ros.analysis.candidates import Placement, place
+from pascal_calib_ros.analysis.guide.candidates import Placement, place
 from pascal_calib_ros.geometry.transform import Transform
 from pascal_calib_ros.sim.render import Pose, SensorModel, features_in_image, render_view
 from pascal_calib_ros.sim.session import SessionSpec
@@ -274,7 +274,7 @@ def test_person_guide_draws_its_first_views_with_the_calibration_file(tmp_path: 
     """With a calibration file where the node keeps it, the bootstrap suggestions are placed with
     that camera, not the nominal one (focal = image width): the suggested pose is the one the
     file's camera gives."""
-    from pascal_calib_ros.analysis.candidates import bootstrap_placements
+    from pascal_calib_ros.analysis.guide.candidates import bootstrap_placements
     from pascal_calib_ros.geometry.camera import Camera
     from pascal_calib_ros.io.camera_yaml import CameraInfoData, write_camera_yaml
 

@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pascal_calib_ros.analysis.candidates import Placement, place
-from pascal_calib_ros.analysis.uncertainty import projection_uncertainty_of
-from pascal_calib_ros.analysis.view_ranking import distinct_from_all
-from pascal_calib_ros.calibrate.pipeline import calibrate
+from pascal_calib_ros.analysis.guide.candidates import Placement, place
+from pascal_calib_ros.analysis.guide.view_ranking import distinct_from_all
+from pascal_calib_ros.analysis.statistics.uncertainty import projection_uncertainty_of
+from pascal_calib_ros.calibrate.intrinsic.pipeline import calibrate
 from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.geometry.camera import Camera
 from pascal_calib_ros.session.guide import MATCH_OVERLAP, GuideState, hint, overlap

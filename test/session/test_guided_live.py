@@ -10,8 +10,8 @@ import time
 import numpy as np
 import pytest
 
-from pascal_calib_ros.analysis.candidates import Placement, place
-from pascal_calib_ros.calibrate.options import CalibrationOptions
+from pascal_calib_ros.analysis.guide.candidates import Placement, place
+from pascal_calib_ros.calibrate.intrinsic.options import CalibrationOptions
 from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.session.answer import Answer
 from pascal_calib_ros.session.guide_overlay import OUTLINE_BGR, draw_guide, guide_lines, progress
@@ -106,7 +106,7 @@ def test_the_guide_stores_matching_views_and_says_done_from_the_real_sigma(ring_
 
 def test_the_recalibration_after_a_stored_view_starts_warm_and_gives_the_cold_sigma(
         ring_target: Target, monkeypatch: pytest.MonkeyPatch) -> None:
-    import pascal_calib_ros.calibrate.warm as warm
+    import pascal_calib_ros.calibrate.intrinsic.warm as warm
 
     starts: list[bool] = []
     first = warm._warm_first
@@ -144,7 +144,7 @@ def test_bad_goal_is_refused(ring_target: Target) -> None:
 def test_the_hint_names_the_tilt_once_position_and_distance_agree(ring_target: Target) -> None:
     """Same place and distance, tilted 45 degrees about another axis: the outlines differ in shape
     only, and the hint (from the live target's pose) says which way to tilt."""
-    from pascal_calib_ros.analysis.view_ranking import RankedView
+    from pascal_calib_ros.analysis.guide.view_ranking import RankedView
 
     guide = GuidedLive(ring_target, CalibrationOptions(), goal_sigma_px=0.1)
     want = Placement((0.5 * W, 0.5 * H), 0.45, 45.0, 0.0, 0.0)

@@ -9,8 +9,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from pascal_calib_ros.analysis.candidates import Placement, place
-from pascal_calib_ros.analysis.view_ranking import distinct_from_all
+from pascal_calib_ros.analysis.guide.candidates import Placement, place
+from pascal_calib_ros.analysis.guide.view_ranking import distinct_from_all
 from pascal_calib_ros.studies import guided_strategies as gs
 from pascal_calib_ros.studies.guided_study import cases
 from pascal_calib_ros.targets import resolve_target

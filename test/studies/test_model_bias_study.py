@@ -1,9 +1,9 @@
 """The model-bias verdict on a lens the model cannot describe (sim/model_bias_study.py; the
 README's table runs all 26 sessions with `pascal-calib study model-bias`)."""
 
-from pascal_calib_ros.analysis.assessment import assess
-from pascal_calib_ros.calibrate.options import CalibrationOptions
-from pascal_calib_ros.calibrate.pipeline import calibrate
+from pascal_calib_ros.analysis.statistics.assessment import assess
+from pascal_calib_ros.calibrate.intrinsic.options import CalibrationOptions
+from pascal_calib_ros.calibrate.intrinsic.pipeline import calibrate
 from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.sim.render import render_view
 from pascal_calib_ros.sim.session import session_views

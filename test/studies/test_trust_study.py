@@ -45,7 +45,7 @@ def test_every_scenario_kind_is_covered() -> None:
 def test_projection_against_truth(ring_target, ring_session) -> None:
     """Against itself a calibration differs by nothing; against the true camera by a finite
     amount, beside a finite predicted RMS."""
-    from pascal_calib_ros.calibrate.pipeline import calibrate
+    from pascal_calib_ros.calibrate.intrinsic.pipeline import calibrate
     from pascal_calib_ros.studies.trust_study import projection_against_truth
 
     cam, _, dets = ring_session

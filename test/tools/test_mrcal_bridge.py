@@ -13,10 +13,10 @@ import cv2
 import numpy as np
 import pytest
 
-from pascal_calib_ros.analysis.uncertainty import projection_uncertainty
-from pascal_calib_ros.calibrate.lm import levenberg_marquardt
-from pascal_calib_ros.calibrate.observations import ViewData
-from pascal_calib_ros.calibrate.problem import Problem, camera_from_intrinsics
+from pascal_calib_ros.analysis.statistics.uncertainty import projection_uncertainty
+from pascal_calib_ros.calibrate.solver.lm import levenberg_marquardt
+from pascal_calib_ros.calibrate.solver.observations import ViewData
+from pascal_calib_ros.calibrate.solver.problem import Problem, camera_from_intrinsics
 from pascal_calib_ros.detect.target_detector import detect_target
 from pascal_calib_ros.geometry.camera import Camera
 from pascal_calib_ros.sim.session import SessionSpec, render_session_views

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pascal_calib_ros.calibrate.options import CalibrationOptions
-from pascal_calib_ros.calibrate.pipeline import calibrate
+from pascal_calib_ros.calibrate.intrinsic.options import CalibrationOptions
+from pascal_calib_ros.calibrate.intrinsic.pipeline import calibrate
 from pascal_calib_ros.io.calibration_json import read_calibration_json
 from pascal_calib_ros.io.camera_yaml import read_camera_yaml
 from pascal_calib_ros.targets import Target

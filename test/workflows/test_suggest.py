@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-from pascal_calib_ros.analysis.candidates import feature_centre
+from pascal_calib_ros.analysis.guide.candidates import feature_centre
 from pascal_calib_ros.cli import main
 from pascal_calib_ros.geometry.transform import Transform
 from pascal_calib_ros.io.hand_eye_yaml import write_poses_yaml
@@ -146,8 +146,8 @@ def test_warm_arm_suggestions_answer_what_the_cold_call_answers() -> None:
             next_document(suggest_for_arm(views, robot[:len(views)], target, opt, frames))
     # issue 36: the view at the first suggestion was refused: the next call offers nothing in its
     # neighbourhood (the arm's roll counted), as many suggestions as before, the figures now unchanged
-    from pascal_calib_ros.analysis.arm_guidance import DISTINCT_ROLL_DEG
-    from pascal_calib_ros.analysis.view_ranking import distinct_from_all
+    from pascal_calib_ros.analysis.guide.arm_guidance import DISTINCT_ROLL_DEG
+    from pascal_calib_ros.analysis.guide.view_ranking import distinct_from_all
     from pascal_calib_ros.io.next_yaml import placement_of_doc
 
     before = next_document(suggest_for_arm(dets, robot, target, opt, frames))
@@ -172,7 +172,7 @@ def test_a_refused_newest_image_makes_the_previous_first_suggestion_avoided(
 
     import cv2
 
-    from pascal_calib_ros.analysis.view_ranking import distinct_from_all
+    from pascal_calib_ros.analysis.guide.view_ranking import distinct_from_all
     from pascal_calib_ros.io.next_yaml import placement_of_doc
 
     folder = tmp_path / "views"

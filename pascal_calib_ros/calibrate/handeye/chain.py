@@ -10,8 +10,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ...geometry import PLUMB_BOB, LensModel
-from ..observations import ViewData
-from ..problem import Problem
+from ..solver.observations import ViewData
+from ..solver.problem import Problem
 
 
 @dataclass

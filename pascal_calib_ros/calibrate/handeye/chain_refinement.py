@@ -18,12 +18,12 @@ import numpy as np
 from ...geometry import DISTORTION_CHOICES, LensModel, Transform
 from ...modes import HandEyeMode
 from ...targets import Target
-from ..covariance import correlation_factor
-from ..lm import WARM_START, LMResult, levenberg_marquardt
-from ..observations import ViewData
-from ..options import CalibrationOptions
-from ..problem import camera_from_intrinsics, shape_frame_of
-from ..result import CalibrationResult
+from ..intrinsic.options import CalibrationOptions
+from ..intrinsic.result import CalibrationResult
+from ..solver.covariance import correlation_factor
+from ..solver.lm import WARM_START, LMResult, levenberg_marquardt
+from ..solver.observations import ViewData
+from ..solver.problem import camera_from_intrinsics, shape_frame_of
 from .chain import ChainProblem, RobotChain
 from .options import HandEyeOptions
 from .sigma import Spread, arm_field_share, spread_of

@@ -13,7 +13,7 @@ import numpy as np
 from ...geometry import Transform
 from ...modes import HandEyeMode
 from ...targets import Target
-from ..observations import ViewData
+from ..solver.observations import ViewData
 from .closed_form import chain_disagreement, hand_eye_closed_form
 
 

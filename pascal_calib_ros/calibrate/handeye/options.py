@@ -8,7 +8,7 @@ import numpy as np
 
 from ...geometry import Transform
 from ...modes import HandEyeMode
-from ..result import CalibrationError, CalibrationResult
+from ..intrinsic.result import CalibrationError, CalibrationResult
 
 MIN_VIEWS = 3
 

@@ -64,11 +64,11 @@ from ...detect import Detection
 from ...geometry import Transform
 from ...modes import HandEyeMode
 from ...targets import Target
-from ..observations import ViewData
-from ..options import CalibrationOptions
-from ..pipeline import DEFAULT_OPTIONS
-from ..result import CalibrationError, CalibrationResult, ViewReport
-from ..warm import calibrate_warm
+from ..intrinsic.options import CalibrationOptions
+from ..intrinsic.pipeline import DEFAULT_OPTIONS
+from ..intrinsic.result import CalibrationError, CalibrationResult, ViewReport
+from ..intrinsic.warm import calibrate_warm
+from ..solver.observations import ViewData
 from .chain_refinement import ChainSolution, ChainStart, jackknife_spread, refine_chain
 from .closed_form import (
     Motions,

@@ -11,12 +11,12 @@ import numpy as np
 from ...detect import Detection
 from ...geometry import DISTORTION_CHOICES, Camera, CircularPointError, Transform
 from ...targets import Target
-from ..initial import pose_with_camera
-from ..lm import levenberg_marquardt
-from ..observations import ViewData, observations
-from ..options import CalibrationOptions
-from ..problem import Problem
-from ..result import CalibrationResult, ViewReport
+from ..intrinsic.initial import pose_with_camera
+from ..intrinsic.options import CalibrationOptions
+from ..intrinsic.result import CalibrationResult, ViewReport
+from ..solver.lm import levenberg_marquardt
+from ..solver.observations import ViewData, observations
+from ..solver.problem import Problem
 
 
 def camera_pose(det: Detection, target: Target, cam: Camera, origin: tuple[float, float]) -> Transform:

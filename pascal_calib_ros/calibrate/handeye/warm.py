@@ -20,7 +20,7 @@ import numpy as np
 
 from ...detect import Detection
 from ...geometry import Transform
-from ..warm import IntrinsicStart
+from ..intrinsic.warm import IntrinsicStart
 from .options import HandEyeOptions
 
 RELABELLED_DEG = 1.0  # a previous view's pose turned by more than this: labelled otherwise now

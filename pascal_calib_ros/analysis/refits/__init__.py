@@ -1,0 +1,1 @@
+"""Refits: a calibration refitted into another lens model over a region, with the refit's error."""

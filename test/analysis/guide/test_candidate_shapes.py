@@ -1,0 +1,106 @@
+"""A candidate's circles must image as the ellipses the detector accepts (analysis/guide/candidate_shapes.py,
+the shape rule of analysis/guide/candidates.py): exact ellipses under a pinhole, bent beyond the detector's
+tests near the border of a wide lens with strong barrel distortion, where the detector refuses the view."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from pascal_calib_ros.analysis.guide.candidate_shapes import contour_scale, shape_circles, shape_shares
+from pascal_calib_ros.analysis.guide.candidates import (
+    Feasibility,
+    Placement,
+    default_feasibility,
+    feasibility_problem,
+    place,
+)
+from pascal_calib_ros.detect.detection import DetectionParams
+from pascal_calib_ros.detect.target_detector import detect_target
+from pascal_calib_ros.geometry.camera import Camera
+from pascal_calib_ros.sim.render import Pose, SensorModel, render_view
+from pascal_calib_ros.targets import resolve_target
+
+# 1280x720, f = 640 px (90 degrees across the width), k1 = -0.28: the wide case of the guided study
+WIDE = Camera.from_params(640.0, 641.6, 654.1, 353.5, dist=[-0.28, 0.0392, -0.0008, 0.0005, 0.0], width=1280,
+                          height=720)
+PINHOLE = Camera.from_params(640.0, 641.6, 654.1, 353.5, width=1280, height=720)
+BORDER = Placement((1152.0, 264.0), 0.32, 0.0, 0.0, 0.0)  # a ring 330 px tall, 38 px from the right border
+CLOSE = Placement((384.0, 264.0), 0.16, 45.0, 180.0, 0.0)  # 570 px across, tilted 45 degrees, 95 px inside
+CENTRE = Placement((640.0, 360.0), 0.32, 25.0, 90.0, 0.0)
+
+
+def _shares(cam: Camera, *ps: Placement) -> np.ndarray:
+    ring = resolve_target("ring_a4")
+    T = [place(ring, cam, p) for p in ps]
+    return shape_shares(ring, cam, np.stack([t.R for t in T]), np.stack([t.translation for t in T]))
+
+
+def test_a_pinhole_images_circles_as_ellipses_whatever_the_pose() -> None:
+    assert np.all(_shares(PINHOLE, BORDER, CLOSE, CENTRE) < 0.02)
+
+
+def test_barrel_distortion_bends_a_ring_near_the_border_or_close_beyond_the_detectors_limits() -> None:
+    border, close, centre = _shares(WIDE, BORDER, CLOSE, CENTRE)
+    assert border > 1.0 and close > 1.0
+    assert centre < 0.2
+
+
+def test_the_share_predicts_the_detectors_answer_on_renders() -> None:
+    ring = resolve_target("ring_a4")
+    params = DetectionParams.for_lens(False)
+    for p, seen in ((BORDER, False), (CENTRE, True)):
+        T = place(ring, WIDE, p)
+        img = render_view(ring, WIDE, Pose(T.R, T.translation), SensorModel(blur_sigma=1.0, seed=3)).image
+        det = detect_target(img, ring, params)
+        assert det.ok is seen
+        # refused for what the lens does to the ring, said so (not "no ring found")
+        assert seen or det.reason.startswith("ring not the image of concentric circles"), det.reason
+
+
+def test_feasibility_refuses_a_bent_ring_and_says_why() -> None:
+    ring = resolve_target("ring_a4")
+    rules = default_feasibility(ring, WIDE.width)
+    assert "not ellipses the detector accepts" in feasibility_problem(ring, WIDE, place(ring, WIDE, BORDER), rules)
+    assert feasibility_problem(ring, WIDE, place(ring, WIDE, CENTRE), rules) == ""
+    unchecked = replace(rules, shape_share=np.inf)
+    assert feasibility_problem(ring, WIDE, place(ring, WIDE, BORDER), unchecked) == ""
+    assert Feasibility().shape_share < 1.0  # a margin below the detector's limit
+
+
+def test_a_view_behind_the_camera_has_no_shape() -> None:
+    ring = resolve_target("ring_a4")
+    T = place(ring, PINHOLE, CENTRE)
+    t = T.translation * np.array([1.0, 1.0, -1.0])
+    assert shape_shares(ring, PINHOLE, T.R[None], t[None])[0] == np.inf
+
+
+def test_contour_scale_follows_the_detectors_downscaling() -> None:
+    params = DetectionParams()
+    assert contour_scale(1280, 720, params) == 1
+    assert contour_scale(1600, 1200, params) == 2
+    assert contour_scale(2592, 1944, params) == 4
+
+
+@pytest.mark.parametrize(("name", "kinds"), [("ring_a4", [0, 1]), ("ring_grid_a4", [3, 1] * 4)])
+def test_the_circles_checked(name: str, kinds: list[int]) -> None:
+    ctr, rad, kind, pairs = shape_circles(resolve_target(name))
+    assert kind.tolist() == kinds
+    assert len(ctr) == len(rad) == len(kinds)
+    assert pairs == ([(0, 1)] if name == "ring_a4" else [])
+
+
+def test_the_batched_concentric_spread_is_the_detectors() -> None:
+    from pascal_calib_ros.analysis.guide.candidate_shapes import concentric_spreads
+    from pascal_calib_ros.detect.grids import concentric_fit
+    from pascal_calib_ros.geometry.conic import Ellipse
+
+    rng = np.random.default_rng(4)
+    outer = np.c_[rng.uniform(100, 500, (20, 2)), rng.uniform(60, 120, 20), rng.uniform(30, 60, 20),
+                  rng.uniform(-3, 3, 20)]
+    hole = np.c_[outer[:, :2] + rng.normal(0, 5, (20, 2)), outer[:, 2:4] * rng.uniform(0.4, 0.6, (20, 1)),
+                 outer[:, 4] + rng.normal(0, 0.2, 20)]
+    want = [concentric_fit(Ellipse(*o), Ellipse(*h))[0] for o, h in zip(outer, hole, strict=True)]
+    assert np.allclose(concentric_spreads(outer, hole), want, rtol=1e-9, atol=1e-12)
