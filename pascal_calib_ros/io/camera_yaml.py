@@ -15,6 +15,7 @@ import numpy as np
 import yaml
 
 from ..errors import PascalCalibError
+from ..geometry import ImageSize
 from .atomic import write_text_atomic
 
 
@@ -39,6 +40,11 @@ class CameraInfoData:
         if self.P is not None:
             return self.P
         return np.concatenate([self.K, np.zeros((3, 1))], 1)
+
+    @property
+    def size(self) -> ImageSize:
+        """The image size (width, height)."""
+        return ImageSize(self.width, self.height)
 
 
 def _matrix(rows: int, cols: int, data: np.ndarray) -> dict[str, Any]:

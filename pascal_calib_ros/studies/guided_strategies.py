@@ -263,7 +263,7 @@ class Coverage:
         self.n += 1
         pts = [np.concatenate([e.points for e in d.edges] + ([d.corners] if d.corners is not None else []))
                for d in state.dets if d.ok]
-        mask = observed_field_mask(pts, cam.width, cam.height) if pts else np.zeros((cam.height, cam.width), bool)
+        mask = observed_field_mask(pts, cam.size) if pts else np.zeros((cam.height, cam.width), bool)
         cols, rows = 5, 4
         best: tuple[float, float, float, float] | None = None
         for i in range(rows):
