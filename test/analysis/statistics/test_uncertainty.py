@@ -15,7 +15,7 @@ from pascal_calib_ros.analysis.statistics.uncertainty import (
     rotation_displacements,
     rotation_free_difference_variance,
 )
-from pascal_calib_ros.calibrate import pipeline
+from pascal_calib_ros.calibrate.intrinsic import pipeline
 from pascal_calib_ros.calibrate.intrinsic.pipeline import calibrate
 from pascal_calib_ros.calibrate.solver.covariance import lag_factor
 from pascal_calib_ros.detect.detection import Detection
