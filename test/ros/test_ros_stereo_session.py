@@ -121,6 +121,9 @@ def test_a_killed_stereo_session_resumes_with_the_same_shots_and_result(
         offline = _result(tmp_path / "offline")
         _same(after, offline, 1e-9)
         assert offline["cams"]["left"].camera_name == "head/left"
+        # the single-camera command refuses a pair's folder (it would calibrate the left frames alone)
+        assert cli_main(["calibrate", str(session), "-o", str(tmp_path / "mono.yaml")]) != 0
+        assert not (tmp_path / "mono.yaml").exists()
         # the session goes on, new shots numbered after the resumed ones; a frame that cannot be
         # written (a folder where its file goes) is said and counted, the shot kept in memory
         (session / "frames" / "left" / "shot_000004.png").mkdir()
