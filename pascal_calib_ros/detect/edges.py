@@ -31,6 +31,7 @@ from ..geometry import (
     sampson_distance,
     sampson_distances,
 )
+from .detection import DetectionRefusal
 
 # a band's other edge within this many blur widths beyond a profile's window is fitted with it
 # (fit_band_profiles): ring_grid_a4 at 800x600, mean fx error of 4 sessions -0.0051 % at 3.5,
@@ -52,7 +53,11 @@ class EdgeFit:
 
 
 class EdgeError(PascalCalibError):
-    """No reliable edge along this curve (blurred, occluded, low contrast)."""
+    """No reliable edge along this curve (blurred, occluded, low contrast); ``kind`` says which."""
+
+    def __init__(self, message: str, kind: DetectionRefusal = DetectionRefusal.EDGE_NOT_FOUND) -> None:
+        super().__init__(message)
+        self.kind = kind
 
 
 def sample_profiles(image: np.ndarray, pts: np.ndarray, normals: np.ndarray, offsets: np.ndarray) -> np.ndarray:
@@ -183,7 +188,7 @@ def refine_edge(image: np.ndarray, conic: np.ndarray, spacing: float = 1.0, half
         s = np.arange(-hw, hw + 1e-9, 0.5)
         inside = ((pts[:, 0] - hw > 1) & (pts[:, 0] + hw < w - 2) & (pts[:, 1] - hw > 1) & (pts[:, 1] + hw < h - 2))
         if inside.mean() < 0.999:
-            raise EdgeError("edge too close to the image border")
+            raise EdgeError("edge too close to the image border", DetectionRefusal.NEAR_BORDER)
         prof = sample_profiles(img, pts, normals, s)
         s0, wid, con, rms = fit_step_profiles(prof, s, w0=width_est, iterations=5)
         sign = np.sign(np.median(con))
@@ -192,7 +197,8 @@ def refine_edge(image: np.ndarray, conic: np.ndarray, spacing: float = 1.0, half
         if ok.sum() < max(12, 0.5 * n):
             med = float(np.median(wid[np.abs(con) >= min_contrast])) if np.any(np.abs(con) >= min_contrast) else np.inf
             if med >= max_width:
-                raise EdgeError(f"edge too blurred (width {med:.1f} px >= {max_width:.1f} px)")
+                raise EdgeError(f"edge too blurred (width {med:.1f} px >= {max_width:.1f} px)",
+                                DetectionRefusal.TOO_BLURRED)
             raise EdgeError(f"edge not found along {100 * (1 - ok.mean()):.0f} % of the curve "
                             "(occluded, low contrast or not an ellipse)")
         shift = s0.copy()

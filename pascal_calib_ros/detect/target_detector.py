@@ -31,7 +31,7 @@ from ..geometry import (
     sampson_distances,
 )
 from ..targets import Target
-from .detection import DEFAULT_PARAMS, CircleEdge, Detection, DetectionParams
+from .detection import DEFAULT_PARAMS, CircleEdge, Detection, DetectionParams, DetectionRefusal
 from .edges import EdgeError, EdgeFit, refine_edge
 from .grids import concentric_fit
 
@@ -44,6 +44,9 @@ class _Blob:
     touches_border: bool
     fit_residual: float
     scale: int = 1  # the downscaling of the image the contours were traced in
+    # False: a shape with a hole, whole in the image, whose outline is no ellipse (kept so that a
+    # refused ring-like shape is named, not lost: :func:`_pick_ring`); no other feature uses it
+    outline_ok: bool = True
 
 
 @dataclass
@@ -80,8 +83,10 @@ def _grey_range(image: np.ndarray, gray: np.ndarray) -> float:
 def find_blobs(gray: np.ndarray, params: DetectionParams, modes: tuple[str, ...] = ("otsu", "adaptive")
                ) -> tuple[list[_Blob], list[_Cut]]:
     """Elliptical dark blobs (with their elliptical holes), full-resolution coordinates, and the
-    non-elliptical dark shapes cut by the image border (of every pass). Thresholds in ``modes``
-    are tried in turn until one gives a blob with a hole (a ring); the last one's blobs are kept."""
+    non-elliptical dark shapes cut by the image border (of every pass). A shape whole in the image
+    with an elliptical hole but an outline that is no ellipse is kept too, marked ``outline_ok``
+    False, for the ring's refusal to name it. Thresholds in ``modes`` are tried in turn until one
+    gives a blob with a hole (a ring); the last one's blobs are kept."""
     h, w = gray.shape
     scale = 1
     small = gray
@@ -163,10 +168,12 @@ def _blobs_from_mask(mask: np.ndarray, scale: int, w: int, h: int, params: Detec
         pts = pts_of[i]
         fit = fits[i]
         x, y, bw, bh = cv2.boundingRect(contours[i])
-        if fit is None or fit[1] > params.ellipse_tolerance * min(fit[0].a, fit[0].b) + 0.7 * scale:
+        outline_ok = fit is not None and fit[1] <= params.ellipse_tolerance * min(fit[0].a, fit[0].b) + 0.7 * scale
+        if not outline_ok and (at_border or fit is None or not holes_of[k]):
             if at_border:
                 cut.append(_Cut(contours[i][:, 0, :], (sw, sh), scale))
             continue
+        assert fit is not None
         e, res = fit
         # the contour's extent at full resolution, from its bounding box (the same integers)
         x0, y0 = x * scale + (scale - 1) / 2, y * scale + (scale - 1) / 2
@@ -178,7 +185,8 @@ def _blobs_from_mask(mask: np.ndarray, scale: int, w: int, h: int, params: Detec
             hf = fits[j]
             if hf is not None and hf[1] < params.ellipse_tolerance * min(hf[0].a, hf[0].b) + 0.7 * scale:
                 holes.append((pts_of[j], hf[0]))
-        out.append(_Blob(pts, e, holes, touches, res, scale))
+        if outline_ok or holes:
+            out.append(_Blob(pts, e, holes, touches, res, scale, outline_ok))
     return out, cut
 
 
@@ -246,14 +254,11 @@ def detect_target(image: np.ndarray, target: Target, params: DetectionParams = D
     h, w = gray.shape
     det = Detection(w, h, name=name)
     if gray.size == 0 or (image.dtype.kind == "f" and not np.isfinite(gray).all()):  # integers are finite
-        det.reason = "empty or invalid image"
-        return det
+        return det.refuse(DetectionRefusal.UNREADABLE_IMAGE, "empty or invalid image")
     if min(h, w) < 16:
-        det.reason = f"image too small ({w}x{h})"
-        return det
+        return det.refuse(DetectionRefusal.UNREADABLE_IMAGE, f"image too small ({w}x{h})")
     if _grey_range(image, gray) < 20:
-        det.reason = "no contrast in the image (lens cap, exposure?)"
-        return det
+        return det.refuse(DetectionRefusal.NO_CONTRAST, "no contrast in the image (lens cap, exposure?)")
     work = gray
     if params.gamma != 1.0:
         work = (255.0 * (np.clip(gray, 0, 255) / 255.0) ** params.gamma).astype(np.float32)
@@ -265,14 +270,12 @@ def detect_target(image: np.ndarray, target: Target, params: DetectionParams = D
         try:
             ring_blob, hole = _pick_ring(blobs, target, params, cut_shapes)
         except _Reject as r:
-            det.reason = str(r)
-            return det
+            return det.refuse(r.kind, str(r))
         try:
             outer = _edge(work, ring_blob.ellipse, params)
             inner = _edge(work, hole, params)
         except EdgeError as exc:
-            det.reason = f"ring: {exc}"
-            return det
+            return det.refuse(exc.kind, f"ring: {exc}")
         det.edges.append(CircleEdge(0, outer.points, outer.conic, float(np.median(outer.width)), outer.rms))
         det.edges.append(CircleEdge(1, inner.points, inner.conic, float(np.median(inner.width)), inner.rms))
         if target.discs:
@@ -282,25 +285,26 @@ def detect_target(image: np.ndarray, target: Target, params: DetectionParams = D
                 fit = _edge(work, disc_blob.ellipse, params)
                 det.edges.append(CircleEdge(disc_idx, fit.points, fit.conic, float(np.median(fit.width)), fit.rms))
             except (_Reject, EdgeError) as exc:
-                det.reason = f"disc: {exc}"
-                return det
+                return det.refuse(exc.kind, f"disc: {exc}")
     elif target.discs:
-        det.reason = "targets without a ring are not supported by the detector yet"
-        return det
+        return det.refuse(DetectionRefusal.UNSUPPORTED, "targets without a ring are not supported by the detector yet")
     if checkerboard and target.boards:
         from .board_corners import find_board_corners
 
         grey8 = image if image.ndim == 2 and image.dtype == np.uint8 else np.clip(gray, 0, 255).astype(np.uint8)
         corners = find_board_corners(grey8, target, det)
         if corners is None and not target.rings:
-            det.reason = det.reason or f"{target.boards[0].kind} not found"
-            return det
+            return det if det.reason else det.refuse(DetectionRefusal.NO_TARGET, f"{target.boards[0].kind} not found")
         det.corners = corners
     return det
 
 
 class _Reject(Exception):
-    pass
+    """A feature refused: its kind and the words (the exception's text)."""
+
+    def __init__(self, kind: DetectionRefusal, message: str) -> None:
+        super().__init__(message)
+        self.kind = kind
 
 
 def _detect_grids(gray: np.ndarray, work: np.ndarray, target: Target, params: DetectionParams,
@@ -312,66 +316,91 @@ def _detect_grids(gray: np.ndarray, work: np.ndarray, target: Target, params: De
     # a disc grid has no holes: the Otsu pass could only be discarded, go straight to the adaptive one
     modes = ("adaptive",) if all(g.kind == "disc" for g in target.grids) else ("otsu", "adaptive")
     blobs, _ = find_blobs(gray, replace(params, min_radius=min(params.min_radius, 4.0)), modes)
+    blobs = [b for b in blobs if b.outline_ok]
     notes = []
     for gi in range(len(target.grids)):
         try:
             edges, note = detect_grid(work, blobs, target, gi, max_blur=params.max_blur, spacing=params.edge_spacing,
                                       curvature_correction=params.curvature_correction)
         except GridError as e:
-            det.reason = str(e)
-            return det
+            return det.refuse(e.kind, str(e))
         det.edges += [CircleEdge(i, p, c, w, r) for i, p, c, w, r in edges]
         if note:
             notes.append(note)
     n_elem = len({e.circle for e in det.edges if target.circles[e.circle].dark_inside})
     if n_elem < 6:
-        det.reason = f"only {n_elem} grid element(s) measured; need 6"
+        det.refuse(DetectionRefusal.TOO_FEW_FEATURES, f"only {n_elem} grid element(s) measured; need 6")
     det.note = "; ".join(notes)
     return det
 
 
 def _pick_ring(blobs: list[_Blob], target: Target, params: DetectionParams, cut_shapes: list[_Cut] | None = None
                ) -> tuple[_Blob, Ellipse]:
+    """The blob that is the target's ring and its hole, or :class:`_Reject` naming why none is:
+    cut by the border, too small, not the image of concentric circles, an outline that is no
+    ellipse (each with the ring-like shape's figures), ambiguous, or no ring-like shape at all."""
     ring = target.rings[0]
     ratio = ring.inner_radius / ring.outer_radius
+    near = 0.35 + 5 * params.ellipse_tolerance  # how far the hole's relative size may be from the printed one
     cands: list[tuple[float, _Blob, Ellipse]] = []
     cut = False
     small = 0.0  # the narrowest semi-axis of a ring too small to measure
     bent = 0.0  # the largest spread of a ring-like shape whose outline and hole are not concentric circles' images
+    outline = 0.0  # the largest ellipse residual (over its limit) of a ring-like shape's outline
     for b in blobs:
         size = np.sqrt(b.ellipse.a * b.ellipse.b)
         for _, he in b.holes:
             if b.touches_border:  # the outline is cut: its ellipse says little beyond the hole's size
-                cut |= bool(abs(np.sqrt(he.a * he.b) / size / ratio - 1) < 0.35 + 5 * params.ellipse_tolerance)
+                cut |= bool(abs(np.sqrt(he.a * he.b) / size / ratio - 1) < near)
                 continue
             # concentric whatever the perspective; the contours' ellipses are uncertain by a few
             # pixels (threshold level, blur, the pixel grid), much of a small hole's shape
             spread, r = concentric_fit(b.ellipse, he)
+            if abs(r / ratio - 1) >= near:
+                continue
+            if not b.outline_ok:  # an elliptical hole in a shape whose outline is no ellipse
+                outline = max(outline, b.fit_residual / (params.ellipse_tolerance * min(b.ellipse.a, b.ellipse.b)
+                                                         + 0.7 * b.scale))
+                continue
             limit = 4 * params.ellipse_tolerance + 8 * b.scale / min(he.a, he.b)
-            if spread >= limit and abs(r / ratio - 1) < 0.35 + 5 * params.ellipse_tolerance:
+            if spread >= limit:
                 bent = max(bent, spread / limit)
-            if (spread < limit
-                    and abs(r / ratio - 1) < 0.35 + 5 * params.ellipse_tolerance):
-                if min(b.ellipse.a, b.ellipse.b) < params.min_radius:
-                    small = max(small, min(b.ellipse.a, b.ellipse.b))
-                    continue
-                cands.append((size, b, he))
+                continue
+            if min(b.ellipse.a, b.ellipse.b) < params.min_radius:
+                small = max(small, min(b.ellipse.a, b.ellipse.b))
+                continue
+            cands.append((size, b, he))
     if not cands:
-        if cut or _cut_circle(cut_shapes or [], params):  # a ring-like blob at the border, or a circle's arc
-            raise _Reject("ring cut by the image border (keep the whole ring in view)")
-        if small:
-            raise _Reject(f"ring too small ({2 * small:.0f} px across at its narrowest; "
-                          f"at least {2 * params.min_radius:.0f} px)")
-        if bent:
-            raise _Reject(f"ring not the image of concentric circles ({bent:.1f}x the detector's limit): the lens "
-                          "bends a close ring or one near the border of a wide lens; hold it farther or nearer "
-                          "the centre (a fisheye: distortion_model:=equidistant)")
-        raise _Reject("no ring found")
+        _refuse_ring(cut or _cut_circle(cut_shapes or [], params), small, bent, outline, params)
     if len(cands) > 1:
         cands.sort(key=lambda c: -c[0])
         if cands[1][0] > 0.7 * cands[0][0]:
-            raise _Reject(f"{len(cands)} ring-like shapes of similar size in view: ambiguous")
+            raise _Reject(DetectionRefusal.AMBIGUOUS,
+                          f"{len(cands)} ring-like shapes of similar size in view: ambiguous")
     return cands[0][1], cands[0][2]
+
+
+def _refuse_ring(cut: bool, small: float, bent: float, outline: float, params: DetectionParams) -> None:
+    """Raise the refusal of a view without a measurable ring, the feature's own reason first: a
+    ring-like shape (or a circle's arc) at the border, one too small, one that is not the image of
+    concentric circles, one whose outline is no ellipse (the figures: over the detector's limit),
+    else no ring-like shape at all."""
+    if cut:
+        raise _Reject(DetectionRefusal.CUT_BY_BORDER, "ring cut by the image border (keep the whole ring in view)")
+    if small:
+        raise _Reject(DetectionRefusal.TOO_SMALL, f"ring too small ({2 * small:.0f} px across at its narrowest; "
+                      f"at least {2 * params.min_radius:.0f} px)")
+    if bent:
+        raise _Reject(DetectionRefusal.NOT_CONCENTRIC,
+                      f"ring not the image of concentric circles ({bent:.1f}x the detector's limit): the lens "
+                      "bends a close ring or one near the border of a wide lens; hold it farther or nearer "
+                      "the centre (a fisheye: distortion_model:=equidistant)")
+    if outline:
+        raise _Reject(DetectionRefusal.OUTLINE_NOT_ELLIPSE,
+                      f"ring's outline not an ellipse ({outline:.1f}x the detector's limit): the lens bends "
+                      "a close ring or one near the border of a wide lens, or something covers its edge; hold "
+                      "it farther or nearer the centre (a fisheye: distortion_model:=equidistant)")
+    raise _Reject(DetectionRefusal.NO_TARGET, "no ring found")
 
 
 def _pick_disc(blobs: list[_Blob], ring: tuple[_Blob, Ellipse], target: Target, params: DetectionParams,
@@ -389,7 +418,7 @@ def _pick_disc(blobs: list[_Blob], ring: tuple[_Blob, Ellipse], target: Target, 
     cut = False
     for b in blobs:
         size = np.sqrt(b.ellipse.a * b.ellipse.b)
-        if b is ring_blob or any(np.sqrt(e.a * e.b) > 0.2 * size for _, e in b.holes):
+        if b is ring_blob or not b.outline_ok or any(np.sqrt(e.a * e.b) > 0.2 * size for _, e in b.holes):
             continue
         if size < params.min_radius or b.fit_residual > 2 / 3 * params.ellipse_tolerance * size + 0.7:
             continue
@@ -408,8 +437,9 @@ def _pick_disc(blobs: list[_Blob], ring: tuple[_Blob, Ellipse], target: Target, 
             best = (score, b)
     if best is None:
         # a disc-like blob at the border, or a circle's arc leaving the frame (the ring is whole)
-        raise _Reject("disc cut by the image border" if cut or _cut_circle(cut_shapes or [], params)
-                      else "no disc found beside the ring")
+        if cut or _cut_circle(cut_shapes or [], params):
+            raise _Reject(DetectionRefusal.CUT_BY_BORDER, "disc cut by the image border")
+        raise _Reject(DetectionRefusal.NO_TARGET, "no disc found beside the ring")
     return best[1]
 
 

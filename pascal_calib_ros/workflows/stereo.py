@@ -25,14 +25,16 @@ import numpy as np
 
 from ..analysis import assess_rig, epipolar_rms
 from ..calibrate import RigOptions, RigResult, calibrate_rig
-from ..detect import Detection, DetectionParams, detect_target
+from ..detect import Detection, DetectionParams, DetectionRefusal, detect_target
 from ..errors import PascalCalibError
-from ..geometry import StereoRectification, rectified_projection, rectify_pair
+from ..geometry import StereoRectification, rectify_pair
 from ..io import (
+    CalibrationRecord,
     CameraInfoData,
     ImageReadError,
     RigCameraData,
     StereoData,
+    camera_info_of,
     pair_camera_infos,
     read_grey,
     sidecar_path,
@@ -122,16 +124,18 @@ def detect_shots(pairing: Pairing, target: Target, params: DetectionParams,
             if progress is not None:
                 progress(k, total, shot if p is None else p.name)
             if p is None:
-                dets.append(Detection(0, 0, name=shot, reason="no image of this shot"))
+                dets.append(Detection(0, 0, name=shot, reason="no image of this shot",
+                                      refusal=DetectionRefusal.MISSING_IMAGE))
                 continue
             try:
                 img = read_grey(p)
             except ImageReadError as e:
-                dets.append(Detection(0, 0, name=shot, reason=str(e)))
+                dets.append(Detection(0, 0, name=shot, reason=str(e), refusal=DetectionRefusal.UNREADABLE_IMAGE))
                 continue
             if size is not None and (img.shape[1], img.shape[0]) != size:
                 why = f"image size {img.shape[1]}x{img.shape[0]} differs from {size[0]}x{size[1]}"
-                dets.append(Detection(img.shape[1], img.shape[0], name=shot, reason=why))
+                dets.append(Detection(img.shape[1], img.shape[0], name=shot, reason=why,
+                                      refusal=DetectionRefusal.SIZE_MISMATCH))
                 continue
             size = (img.shape[1], img.shape[0])
             dets.append(detect_target(img, target, params, name=shot))
@@ -234,13 +238,18 @@ def stereo_outcome(rig: RigResult, dets: list[list[Detection]], target: Target, 
     return outcome
 
 
-def write_rig_records(rig: RigResult, out: Path, camera_names: list[str]) -> list[Path]:
-    """``NAME.calibration.json`` beside each camera's ``NAME.yaml`` in ``out`` (NAME the rig's camera
-    name): what ``pascal-calib verify`` and ``export`` read, with each camera's intrinsics'
+def rig_records(rig: RigResult, camera_names: list[str]) -> list[CalibrationRecord]:
+    """Each camera of a jointly calibrated rig as a calibrated camera, with its intrinsics'
     covariance from the joint fit (:func:`~.calibration_record.record_of_rig_camera`)."""
     assessed = assess_rig(rig)
-    return [write_calibration_json(sidecar_path(out / f"{n}.yaml"), record_of_rig_camera(rig, c, assessed[c], cn))
-            for c, (n, cn) in enumerate(zip(rig.names, camera_names, strict=True))]
+    return [record_of_rig_camera(rig, c, assessed[c], cn) for c, cn in enumerate(camera_names)]
+
+
+def write_rig_records(rig: RigResult, out: Path, camera_names: list[str]) -> list[Path]:
+    """``NAME.calibration.json`` beside each camera's ``NAME.yaml`` in ``out`` (NAME the rig's camera
+    name): what ``pascal-calib verify`` and ``export`` read (:func:`rig_records`)."""
+    return [write_calibration_json(sidecar_path(out / f"{n}.yaml"), rec)
+            for n, rec in zip(rig.names, rig_records(rig, camera_names), strict=True)]
 
 
 @dataclass
@@ -259,14 +268,13 @@ def rig_from_detections(dets: list[list[Detection]], target: Target, names: list
     frames = frames or [f"{n}_optical_frame" for n in names]
     out = Path(out_dir)
     files, cams = [], []
+    records = rig_records(rig, names)  # each camera's YAML and record from the one calibrated camera
     for c, n in enumerate(names):
-        cam = rig.cameras[c].camera()
-        info = CameraInfoData(cam.width, cam.height, n, cam.K, np.asarray(cam.D, float), cam.model,
-                              P=rectified_projection(cam))
-        files.append(write_camera_yaml(out / f"{n}.yaml", info))
+        files.append(write_camera_yaml(out / f"{n}.yaml", camera_info_of(records[c])))
         cams.append(RigCameraData(n, frames[c], f"{n}.yaml", rig.pose_in_reference(c), *rig.pose_sigma[c]))
     files.append(write_rig_yaml(out / "rig.yaml", cams, int(np.sum(rig.used.any(0)))))
-    files += write_rig_records(rig, out, names)
+    files += [write_calibration_json(sidecar_path(out / f"{n}.yaml"), rec)
+              for n, rec in zip(names, records, strict=True)]
     lines = ["shots:", *_shot_lines(rig), *rig.summary_lines()]
     for c in range(1, len(names)):
         sr, st = rig.pose_sigma[c]

@@ -37,7 +37,7 @@ from scipy.spatial.transform import Rotation
 
 from ...errors import PascalCalibError
 from ...geometry import Camera, ImageSize, Transform, grid_pixels, grid_shape, hulls_mask
-from ...io import ReportJsonError, read_camera_yaml, read_view_hulls
+from ...io import ReportJsonError, read_view_hulls
 
 DEFAULT_STEP = 16.0  # px between grid points
 MIN_POINTS = 3  # fewer common grid points leave the rotation undetermined
@@ -189,15 +189,6 @@ def projection_difference(a: Camera, b: Camera, region_mask: np.ndarray | None =
     diff = b.project(T.apply(P_all[use])) - q_all[use]
     return ProjectionDiff(q_all[use], diff, T, distance, float(step), a.width, a.height,
                           n_excluded=int(len(q_all) - use.sum()))
-
-
-def camera_from_yaml(path: str | Path) -> Camera:
-    """A :class:`Camera` from a ROS ``camera_calibration_parsers`` YAML (K, D, size, model)."""
-    info = read_camera_yaml(path)
-    try:
-        return Camera(info.K, info.D, info.width, info.height, info.distortion_model)
-    except ValueError as e:  # unknown model, wrong number of coefficients
-        raise CompareError(f"{path}: {e}") from None
 
 
 @dataclass(frozen=True)
