@@ -149,7 +149,7 @@ class GuideState:
         if not views or not self.avoided:
             return views
         w, h = self.camera_guess.width, self.camera_guess.height
-        keep = distinct_from_all([v.placement for v in views], self.avoided, w, h)
+        keep = distinct_from_all([v.placement for v in views], self.avoided, ImageSize(w, h))
         return [v for v, k in zip(views, keep, strict=True) if k]
 
     def _bootstrap(self) -> None:
@@ -194,7 +194,7 @@ class GuideState:
             self.index = max(0, min(n_views, len(self.suggestions) - 1))
             self.sigma_px = float("nan")
             return
-        s = suggest_views(refinement, self.target, width, height, self.n, avoid=self.avoided)
+        s = suggest_views(refinement, self.target, ImageSize(width, height), self.n, avoid=self.avoided)
         self.sigma_px, self.camera, self.suggestions, self.index = s.sigma_px, s.camera, s.suggestions, 0
 
     def outline(self) -> np.ndarray:

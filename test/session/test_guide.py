@@ -105,7 +105,8 @@ def test_a_refused_view_at_a_suggestion_is_not_offered_again(ring_target: Target
     assert len(g.avoided) == 2 and g.sigma_px == sigma and not g.done
     # ranked again on the same views: nothing in the refused suggestion's neighbourhood, the sigma unchanged
     g.update(res.refinement, ImageSize(W, H), len(dets))
-    assert g.suggestions and distinct_from_all([s.placement for s in g.suggestions], [first.placement], W, H).all()
+    assert g.suggestions and distinct_from_all([s.placement for s in g.suggestions], [first.placement],
+                                               ImageSize(W, H)).all()
     assert g.sigma_px == pytest.approx(sigma, rel=1e-12) and not g.done
     # without the refusal the ranking offers that view again (what the session did before)
     assert fresh.current is not None and fresh.current.placement == first.placement
