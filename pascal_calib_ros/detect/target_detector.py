@@ -15,8 +15,8 @@ them and checkerboards; the circles' edges are measured to subpixel accuracy.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -47,6 +47,9 @@ class _Blob:
     # False: a shape with a hole, whole in the image, whose outline is no ellipse (kept so that a
     # refused ring-like shape is named, not lost: :func:`_pick_ring`); no other feature uses it
     outline_ok: bool = True
+    # the ellipses of its holes that are no ellipse's image (bent: fit residual over the limit) of a
+    # shape whose outline is no ellipse either (a close ring through a wide lens): named, not lost
+    bent_holes: list[Ellipse] = field(default_factory=list)
 
 
 @dataclass
@@ -147,14 +150,7 @@ def _blobs_from_mask(mask: np.ndarray, scale: int, w: int, h: int, params: Detec
     # strength is looked at if a rejection needs it (_cut_circle)
     cut = [_Cut(contours[i][:, 0, :], (sw, sh), scale, img) for k, (i, at) in enumerate(cand)
            if at and strength[k] < params.min_edge_strength]
-    holes_of = {}
-    for k in strong:
-        hs, j = [], hier[cand[k][0]][2]
-        while j != -1:
-            if len(contours[j]) >= 12:
-                hs.append(j)
-            j = hier[j][0]
-        holes_of[k] = hs
+    holes_of = {k: _holes(contours, hier, cand[k][0]) for k in strong}
     to_fit = [cand[k][0] for k in strong] + [j for k in strong for j in holes_of[k]]
     # full-resolution coordinates of every contour to fit, converted in one pass
     pts_of: dict[int, np.ndarray] = {}
@@ -180,23 +176,39 @@ def _blobs_from_mask(mask: np.ndarray, scale: int, w: int, h: int, params: Detec
         x1, y1 = (x + bw - 1) * scale + (scale - 1) / 2, (y + bh - 1) * scale + (scale - 1) / 2
         touches = (x0 < margin + scale or y0 < margin + scale
                    or x1 > w - 1 - margin - scale or y1 > h - 1 - margin - scale)
-        holes = []
+        holes, bent = [], []
         for j in holes_of[k]:
             hf = fits[j]
             if hf is not None and hf[1] < params.ellipse_tolerance * min(hf[0].a, hf[0].b) + 0.7 * scale:
                 holes.append((pts_of[j], hf[0]))
-        if outline_ok or holes:
-            out.append(_Blob(pts, e, holes, touches, res, scale, outline_ok))
+            elif hf is not None and not outline_ok:
+                bent.append(hf[0])
+        if outline_ok or holes or bent:
+            out.append(_Blob(pts, e, holes, touches, res, scale, outline_ok, bent))
     return out, cut
+
+
+def _holes(contours: Sequence[np.ndarray], hier: np.ndarray, i: int) -> list[int]:
+    """The holes (indices into ``contours``, at least 12 pixels long) of the outer contour ``i``."""
+    hs, j = [], hier[i][2]
+    while j != -1:
+        if len(contours[j]) >= 12:
+            hs.append(int(j))
+        j = hier[j][0]
+    return hs
 
 
 def _cut_circle(cuts: list[_Cut], params: DetectionParams) -> bool:
     """Whether one of the shapes cut by the image border is a circle's image cut by it: a stretch
     of its outline off the border is an ellipse's arc, at least a quarter of it and of at least
-    ``min_radius``. The sheet's edges bounding the background beside a sheet cut by the border
-    are not: straight or gently curved lines, joined at corners."""
+    ``min_radius``, whose ellipse reaches the border (within ``border_margin``). The sheet's edges
+    bounding the background beside a sheet cut by the border are not: straight or gently curved
+    lines, joined at corners (through a wide lens, k1 -0.28, they bend into arcs like a circle's,
+    hence the ellipse that must reach the border, and :func:`_pick_ring` consults this only when
+    no whole ring-like shape names the refusal: issue 36, whole rings were refused as cut)."""
     runs: list[np.ndarray] = []
     scales: list[int] = []
+    frames: list[tuple[int, int]] = []
     for c in cuts:
         (sw, sh), pts = c.size, c.contour
         inside = (pts[:, 0] > 0) & (pts[:, 1] > 0) & (pts[:, 0] < sw - 1) & (pts[:, 1] < sh - 1)
@@ -214,15 +226,26 @@ def _cut_circle(cuts: list[_Cut], params: DetectionParams) -> bool:
                for a, b in zip(steps[::2], steps[1::2], strict=True) if b - a >= 12]
         runs += new
         scales += [c.scale] * len(new)
-    for run, scale, fit in zip(runs, scales, _ellipses_of(runs), strict=True):
+        frames += [(sw * c.scale, sh * c.scale)] * len(new)
+    for run, scale, frame, fit in zip(runs, scales, frames, _ellipses_of(runs), strict=True):
         if fit is None:
             continue
         e, res = fit
         arc = float(np.sum(np.hypot(*np.diff(run, axis=0).T)))
         if (res <= params.ellipse_tolerance * min(e.a, e.b) + 0.7 * scale and min(e.a, e.b) >= params.min_radius
-                and arc >= 0.25 * e.perimeter):
+                and arc >= 0.25 * e.perimeter and _room(e, frame) < params.border_margin + scale):
             return True
     return False
+
+
+def _room(e: Ellipse, frame: tuple[int, int]) -> float:
+    """The least distance (px) from the ellipse ``e`` to the border of an image ``frame`` (width,
+    height), negative where it leaves the image: by its bounding box, half-extents
+    sqrt(a^2 cos^2 t + b^2 sin^2 t) along x and sqrt(a^2 sin^2 t + b^2 cos^2 t) along y (t its angle)."""
+    w, h = frame
+    ext_x = np.sqrt((e.a * np.cos(e.angle)) ** 2 + (e.b * np.sin(e.angle)) ** 2)
+    ext_y = np.sqrt((e.a * np.sin(e.angle)) ** 2 + (e.b * np.cos(e.angle)) ** 2)
+    return float(min(e.cx - ext_x, e.cy - ext_y, w - 1 - e.cx - ext_x, h - 1 - e.cy - ext_y))
 
 
 def _ellipses_of(contours: list[np.ndarray]) -> list[tuple[Ellipse, float] | None]:
@@ -309,8 +332,6 @@ class _Reject(Exception):
 
 def _detect_grids(gray: np.ndarray, work: np.ndarray, target: Target, params: DetectionParams,
                   det: Detection) -> Detection:
-    from dataclasses import replace
-
     from .grids import GridError, detect_grid
 
     # a disc grid has no holes: the Otsu pass could only be discarded, go straight to the adaptive one
@@ -349,6 +370,10 @@ def _pick_ring(blobs: list[_Blob], target: Target, params: DetectionParams, cut_
     outline = 0.0  # the largest ellipse residual (over its limit) of a ring-like shape's outline
     for b in blobs:
         size = np.sqrt(b.ellipse.a * b.ellipse.b)
+        if not b.touches_border and any(abs(np.sqrt(he.a * he.b) / size / ratio - 1) < near for he in b.bent_holes):
+            # outline and hole both bent (a close ring through a wide lens): the outline's figure
+            outline = max(outline, b.fit_residual / (params.ellipse_tolerance * min(b.ellipse.a, b.ellipse.b)
+                                                     + 0.7 * b.scale))
         for _, he in b.holes:
             if b.touches_border:  # the outline is cut: its ellipse says little beyond the hole's size
                 cut |= bool(abs(np.sqrt(he.a * he.b) / size / ratio - 1) < near)
@@ -371,7 +396,10 @@ def _pick_ring(blobs: list[_Blob], target: Target, params: DetectionParams, cut_
                 continue
             cands.append((size, b, he))
     if not cands:
-        _refuse_ring(cut or _cut_circle(cut_shapes or [], params), small, bent, outline, params)
+        # a circle's arc leaving the frame elsewhere names the refusal only when no whole ring-like
+        # shape says more; a hole in a shape joined to the background: the ring's outline is lost
+        seen = bool(small or bent or outline)
+        _refuse_ring(cut or (not seen and _cut_circle(cut_shapes or [], params)), small, bent, outline, params)
     if len(cands) > 1:
         cands.sort(key=lambda c: -c[0])
         if cands[1][0] > 0.7 * cands[0][0]:

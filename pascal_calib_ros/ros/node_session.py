@@ -13,12 +13,13 @@ from __future__ import annotations
 import re
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Generic, Protocol, TypeVar
 
 from ..detect import detect_target
 from ..geometry import Transform
 from ..io import FileWriteError, SessionFolder, SessionFolderError, SessionManifest, is_session_folder, sidecar_path
-from ..session import NOT_WRITTEN, SIDES
+from ..session import NOT_WRITTEN, SIDES, LiveSession, ResultHistory, StereoSession
+from ..targets import Target
 from ..workflows import (
     ResultSet,
     ResultStore,
@@ -27,21 +28,39 @@ from ..workflows import (
     output_folder,
     recorded_stereo_shots,
 )
+from .node_parts import NodeCore
 from .params import ParameterError
 
 if TYPE_CHECKING:
     import numpy as np
 
     from ..detect import Detection
-    from .calibration_node import CalibrationNode
-    from .node_base import CalibrationNodeBase
-    from .stereo_node import StereoCalibrationNode
 
 SESSIONS = "sessions"
 _NUMBER = re.compile(r"(\d+)$")
 
 
-def manifest_of(node: CalibrationNode) -> SessionManifest:
+class RecordedNode(NodeCore, Protocol):
+    """What the mono node's recording uses of the node (:class:`.calibration_node.CalibrationNode`):
+    the robot pose topic, the target, the live session a recorded view is stored in again, the labels."""
+
+    pose_topic: str
+    target: Target
+    session: LiveSession
+    history: ResultHistory
+
+
+class RecordedStereoNode(NodeCore, Protocol):
+    """What the stereo node's recording uses of the node (:class:`.stereo_node.StereoCalibrationNode`)."""
+
+    target: Target
+    session: StereoSession
+
+
+N = TypeVar("N", bound=NodeCore)  # the node a recording belongs to, as the recording uses it
+
+
+def manifest_of(node: RecordedNode) -> SessionManifest:
     """What the node records a session with (its parameters)."""
     p = node.p
     return SessionManifest(str(p("target")), str(p("camera_name")), str(p("distortion_model")), float(p("gamma")),
@@ -49,7 +68,7 @@ def manifest_of(node: CalibrationNode) -> SessionManifest:
                            str(p("robot_tool_frame")) if node.pose_topic else "")
 
 
-def recording_on(node: CalibrationNode) -> bool:
+def recording_on(node: NodeCore) -> bool:
     """``record_session``: ``always``, ``never``, or ``auto`` (with ``collect:=on_capture`` or ``output_dir``)."""
     mode = str(node.p("record_session"))
     if mode == "auto":
@@ -63,14 +82,12 @@ def newest_session(sessions: Path) -> Path | None:
     return found[-1] if found else None
 
 
-class SessionRecording:
+class SessionRecording(Generic[N]):
     """A node's session folder (None when not recording): opened, created or resumed at start,
     what could not be written counted; a mode says what it records (:meth:`manifest`), when
     (:meth:`recording_on`) and how a recorded view is stored again (:meth:`restore`)."""
 
-    node: CalibrationNodeBase
-
-    def __init__(self, node: CalibrationNodeBase) -> None:
+    def __init__(self, node: N) -> None:
         self.node = node
         self.folder: SessionFolder | None = None
         self.not_written = 0
@@ -156,11 +173,9 @@ class SessionRecording:
         return out
 
 
-class NodeSession(SessionRecording):
+class NodeSession(SessionRecording[RecordedNode]):
     """The mono node's session folder (a view per stored frame, with its robot pose), its result
     store and labels."""
-
-    node: CalibrationNode
 
     def manifest(self) -> SessionManifest:
         return manifest_of(self.node)
@@ -222,18 +237,16 @@ class NodeSession(SessionRecording):
         return {**self.node.history.status(), **self.folder_status()}
 
 
-def stereo_manifest(node: StereoCalibrationNode) -> SessionManifest:
+def stereo_manifest(node: NodeCore) -> SessionManifest:
     """What the stereo node records a session with: a shot of the left and the right camera."""
     p = node.p
     return SessionManifest(str(p("target")), str(p("camera_name")), str(p("distortion_model")), float(p("gamma")),
                            frame_id=str(p("left_frame")), child_frame_id=str(p("right_frame")), cameras=SIDES)
 
 
-class StereoNodeSession(SessionRecording):
+class StereoNodeSession(SessionRecording[RecordedStereoNode]):
     """The stereo node's session folder: each stored shot (both frames, then ``session.yaml``
     naming it with its stamps and which camera's view was not used) as it is taken."""
-
-    node: StereoCalibrationNode
 
     def manifest(self) -> SessionManifest:
         return stereo_manifest(self.node)
@@ -263,4 +276,5 @@ class StereoNodeSession(SessionRecording):
             return self.failed(e)
 
 
-__all__ = ["FileWriteError", "NodeSession", "SessionRecording", "StereoNodeSession"]
+__all__ = ["FileWriteError", "NodeSession", "RecordedNode", "RecordedStereoNode", "SessionRecording",
+           "StereoNodeSession"]

@@ -254,27 +254,38 @@ def write_rig_records(rig: RigResult, out: Path, camera_names: list[str]) -> lis
 
 @dataclass
 class RigOutcome:
+    """A rig's joint calibration: each camera as a calibrated camera (its record), the frames its
+    transforms are published in, the lines a person reads, the files written."""
+
     rig: RigResult
-    files: list[Path]
+    records: list[CalibrationRecord]
+    frames: list[str]
     lines: list[str]
+    files: list[Path] = field(default_factory=list)
+
+    def camera_infos(self) -> list[CameraInfoData]:
+        """Each camera's CameraInfo (monocular: R = I, P as ``pascal-calib calibrate`` writes it)."""
+        return [camera_info_of(rec) for rec in self.records]
+
+    def write(self, out_dir: str | Path) -> list[Path]:
+        """``NAME.yaml`` and ``NAME.calibration.json`` per camera (both from its record) and
+        ``rig.yaml`` (:mod:`..io.stereo_yaml`) in ``out_dir``."""
+        out, rig, names = Path(out_dir), self.rig, self.rig.names
+        files = [write_camera_yaml(out / f"{n}.yaml", info) for n, info in zip(names, self.camera_infos(), strict=True)]
+        cams = [RigCameraData(n, self.frames[c], f"{n}.yaml", rig.pose_in_reference(c), *rig.pose_sigma[c])
+                for c, n in enumerate(names)]
+        files.append(write_rig_yaml(out / "rig.yaml", cams, int(np.sum(rig.used.any(0)))))
+        return files + [write_calibration_json(sidecar_path(out / f"{n}.yaml"), rec)
+                        for n, rec in zip(names, self.records, strict=True)]
 
 
 def rig_from_detections(dets: list[list[Detection]], target: Target, names: list[str], out_dir: str | Path,
                         options: RigOptions = RigOptions(), frames: list[str] | None = None  # noqa: B008 (frozen)
                         ) -> RigOutcome:
-    """Detections of N cameras (``dets[c][s]``) -> the joint calibration, ``NAME.yaml`` per camera
-    (monocular: R = I, P as ``pascal-calib calibrate`` writes it) and ``rig.yaml`` in ``out_dir``."""
+    """Detections of N cameras (``dets[c][s]``) -> the joint calibration, written to ``out_dir``
+    (:meth:`RigOutcome.write`)."""
     rig = calibrate_rig(dets, target, names, options, [d.name for d in dets[0]])
     frames = frames or [f"{n}_optical_frame" for n in names]
-    out = Path(out_dir)
-    files, cams = [], []
-    records = rig_records(rig, names)  # each camera's YAML and record from the one calibrated camera
-    for c, n in enumerate(names):
-        files.append(write_camera_yaml(out / f"{n}.yaml", camera_info_of(records[c])))
-        cams.append(RigCameraData(n, frames[c], f"{n}.yaml", rig.pose_in_reference(c), *rig.pose_sigma[c]))
-    files.append(write_rig_yaml(out / "rig.yaml", cams, int(np.sum(rig.used.any(0)))))
-    files += [write_calibration_json(sidecar_path(out / f"{n}.yaml"), rec)
-              for n, rec in zip(names, records, strict=True)]
     lines = ["shots:", *_shot_lines(rig), *rig.summary_lines()]
     for c in range(1, len(names)):
         sr, st = rig.pose_sigma[c]
@@ -282,8 +293,10 @@ def rig_from_detections(dets: list[list[Detection]], target: Target, names: list
         lines.append(f"{names[c]} in {names[0]}'s frame: t = [{', '.join(f'{v:.6f}' for v in t)}] m "
                      f"(+- [{', '.join(f'{v:.4f}' for v in st)}] mm), +- [{', '.join(f'{v:.5f}' for v in sr)}] deg")
         lines.append("  " + static_transform_command(rig.pose_in_reference(c), frames[0], frames[c]))
-    lines.append("wrote " + ", ".join(str(f) for f in files))
-    return RigOutcome(rig, files, lines)
+    outcome = RigOutcome(rig, rig_records(rig, names), frames, lines)
+    outcome.files = outcome.write(out_dir)
+    outcome.lines.append("wrote " + ", ".join(str(f) for f in outcome.files))
+    return outcome
 
 
 def progress_printer(enabled: bool) -> Callable[[int, int, str], None] | None:

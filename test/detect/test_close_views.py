@@ -145,3 +145,24 @@ def test_a_grid_element_near_the_image_border_is_measured_with_a_shorter_window(
     assert fit is not None
     e = Ellipse.from_conic(fit.conic)
     assert abs(e.cx - cx) < 0.03 and abs(e.cy - cy) < 0.03 and abs(e.a - r) < 0.03 and abs(e.b - r) < 0.03
+
+
+def test_a_whole_ring_bent_by_the_lens_is_not_refused_as_cut() -> None:
+    """Issue 36 (study `undesigned_views`, seed 1, view_001): ring_a4 47 px inside the border of
+    the 1280x720 wide-lens image, seen 81 deg from the line of sight, the sheet cut by the border.
+    Its outline and hole are both bent off ellipses by the lens; the sheet's edges, bent alike,
+    looked like a circle's arc leaving the frame, and the view was refused as `cut by border`.
+    The refusal now names the ring's own state."""
+    from pascal_calib_ros.detect import DetectionRefusal
+    from pascal_calib_ros.sim import render_view, session_views
+    from pascal_calib_ros.studies.undesigned_views import undesigned_spec, view_truth
+    from pascal_calib_ros.targets import resolve_target
+    from pascal_calib_ros.workflows import detection_params
+
+    target = resolve_target("ring_a4")
+    spec = undesigned_spec(1, views=2, extras=0)
+    cam = spec.camera()
+    name, pose, sensor = session_views(target, spec)[1]
+    assert name == "view_001" and view_truth(target, cam, pose).whole and view_truth(target, cam, pose).margin > 40
+    det = detect_target(render_view(target, cam, pose, sensor).image, target, detection_params("plumb_bob", 2.2))
+    assert det.refusal == DetectionRefusal.OUTLINE_NOT_ELLIPSE, det.reason

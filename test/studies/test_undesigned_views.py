@@ -20,6 +20,8 @@ def test_the_study_classifies_every_view_with_the_truth(capsys) -> None:
         assert r["measured"] == (r["refusal"] == ""), r
         if r["measured"]:  # the truth's verdict: every point near the true edge, the centre's image close
             assert r["whole"] and r["edge0_sd"] < 1.0 and r["centre_err"] < 2.0, r
+            # detected with the renders' gamma: no 0.8 px offset of every edge (gamma 1 before)
+            assert abs(r["edge0_mean"]) < 0.1 and abs(r["edge1_mean"]) < 0.1, r
     assert out["whole_refused"] == [r for r in rows if r["whole"] and not r["measured"]]
     assert "ring whole in the image" in capsys.readouterr().out
 

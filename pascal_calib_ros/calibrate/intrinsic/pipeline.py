@@ -14,7 +14,7 @@ import numpy as np
 from ...detect import Detection
 from ...geometry import DISTORTION_CHOICES, Camera, CircularPointError, DegenerateViewsError, ImageSize
 from ...targets import Target
-from ..solver.observations import ViewData, observations
+from ..solver.observations import ViewData
 from ..solver.problem import DISTORTION_MODELS, intrinsic_names, shape_frame_of
 from ..solver.refine import RefineResult, refine
 from .checks import (
@@ -30,7 +30,7 @@ from .initial import (
     pose_to_params,
     pose_with_camera,
 )
-from .options import LOSS_SCALES, CalibrationOptions, checked_options, checked_views
+from .options import LOSS_SCALES, CalibrationOptions, checked_options, checked_views, observations
 from .result import CalibrationError, CalibrationResult, ViewReport
 from .start import (
     RESTART_KAPPAS,

@@ -19,7 +19,7 @@ from ...geometry import (
     IndefiniteOmegaError,
 )
 from ...targets import Target
-from ..solver.observations import ViewData, observations
+from ..solver.observations import ViewData
 from ..solver.problem import DISTORTION_MODELS, SHAPE_NAMES, Problem
 from ..solver.refine import RefineResult
 from .initial import (
@@ -29,7 +29,7 @@ from .initial import (
     pose_from_view,
     pose_to_params,
 )
-from .options import CalibrationOptions
+from .options import CalibrationOptions, observations
 from .plumbline import (
     division_parameter,
     equidistant_focal,
