@@ -10,6 +10,8 @@ from typing import Any
 
 import numpy as np
 
+from ..geometry import ImageSize
+
 
 @dataclass(frozen=True)
 class DetectionParams:
@@ -107,6 +109,11 @@ class Detection:
             if e.circle == circle:
                 return e
         return None
+
+    @property
+    def size(self) -> ImageSize:
+        """The image size (width, height)."""
+        return ImageSize(self.width, self.height)
 
 
 DEFAULT_PARAMS = DetectionParams()

@@ -15,7 +15,7 @@ import numpy as np
 import yaml
 
 from ..errors import PascalCalibError
-from ..geometry import rectified_projection
+from ..geometry import ImageSize, rectified_projection
 from .atomic import write_text_atomic
 from .calibration_json import CalibrationRecord
 
@@ -41,6 +41,11 @@ class CameraInfoData:
         if self.P is not None:
             return self.P
         return np.concatenate([self.K, np.zeros((3, 1))], 1)
+
+    @property
+    def size(self) -> ImageSize:
+        """The image size (width, height)."""
+        return ImageSize(self.width, self.height)
 
 
 def camera_info_of(rec: CalibrationRecord, R: np.ndarray | None = None, P: np.ndarray | None = None

@@ -108,7 +108,7 @@ def _calibration_error(dets: list[Detection], target: Target, truth: Camera) -> 
         res = calibrate(dets, target, CalibrationOptions())
     except CalibrationError as exc:
         return {"fx": float("nan"), "rms": float("nan"), "max": float("nan"), "error": str(exc)}  # type: ignore[dict-item]
-    px = grid_pixels(truth.width, truth.height, 40).astype(float)
+    px = grid_pixels(truth.size, 40).astype(float)
     err = np.linalg.norm(res.camera().project(truth.unproject(px)) - px, axis=1)
     return {"fx": float(res.K[0, 0]), "rms": float(np.sqrt(np.nanmean(err**2))), "max": float(np.nanmax(err))}
 

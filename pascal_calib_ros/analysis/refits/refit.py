@@ -181,7 +181,7 @@ def refit_camera(source: Camera, choice: str, region_mask: np.ndarray | None = N
                          f"{source.width}x{source.height}")
     lens = DISTORTION_CHOICES[choice][0]
     step = max(source.width, source.height) / FIT_STEP_DIVISOR
-    q = grid_pixels(source.width, source.height, step, region_mask)
+    q = grid_pixels(source.size, step, region_mask)
     rays = source.unproject(q)
     ok = np.all(np.isfinite(rays), 1)
     q, rays = q[ok], rays[ok]

@@ -67,7 +67,7 @@ def refit_splined(source: Camera, region_mask: np.ndarray | None = None, region:
     the result's ``camera`` is a :class:`SplinedCamera`. Raises :class:`~.refit.RefitError` as
     :func:`~.refit.refit_camera` does."""
     nx, ny, fov = _grid_shape(source)
-    q = grid_pixels(source.width, source.height, max(source.width, source.height) / FIT_STEP_DIVISOR, region_mask)
+    q = grid_pixels(source.size, max(source.width, source.height) / FIT_STEP_DIVISOR, region_mask)
     rays = source.unproject(q)
     ok = np.all(np.isfinite(rays), 1)
     q, rays = q[ok], rays[ok]
