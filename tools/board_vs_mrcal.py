@@ -49,6 +49,8 @@ from pascal_calib_ros.targets import Target, resolve_target
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import mrcal_bridge
 
+from pascal_calib_ros.geometry import ImageSize
+
 INFINITY_M = math.inf  # projection sigma at infinity (directions: the views' rotations only)
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".pgm")
 SUBPIX = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 30, 0.001)
@@ -101,8 +103,8 @@ def opencv_row(name: str, corners: list[np.ndarray | None], obj: np.ndarray, siz
 
 def sigma_summary(pixels: np.ndarray, sigma: np.ndarray, distance: float, mask: np.ndarray) -> dict[str, float]:
     """Median and worst sigma over the grid points inside the observed field."""
-    w, h = mask.shape[1], mask.shape[0]
-    pu = ProjectionUncertainty(pixels, np.asarray(sigma, float), distance, grid_shape(w, h, max(w, h) / 40.0))
+    size = ImageSize.of(mask)
+    pu = ProjectionUncertainty(pixels, np.asarray(sigma, float), distance, grid_shape(size, max(size) / 40.0))
     s = pu.summary(mask)
     return {"median_px": s["median_px"], "worst_px": s["worst_px"]}
 
@@ -140,7 +142,7 @@ def our_sigmas(row: dict[str, Any], distance: float, mask: np.ndarray) -> None:
         if ref is None or ref.covariance is None:
             row[key] = {"median_px": float("nan"), "worst_px": float("nan")}
             continue
-        pu = projection_uncertainty_of(ref, res.width, res.height, d)
+        pu = projection_uncertainty_of(ref, res.size, d)
         row[key] = sigma_summary(pu.pixels, pu.sigma, d, mask)
 
 
@@ -151,7 +153,7 @@ def mrcal_rows(corners: list[np.ndarray | None], obj: np.ndarray, size: tuple[in
     if not ok:
         return [{"method": "mrcal", "error": why}]
     got = [c for c in corners if c is not None]
-    grid = grid_pixels(size[0], size[1], max(size) / 40.0)
+    grid = grid_pixels(ImageSize(size[0], size[1]), max(size) / 40.0)
     rows = []
     for name, reject in (("mrcal", True), ("mrcal, no outlier rejection", False)):
         t0 = time.perf_counter()
@@ -198,7 +200,7 @@ def run(folder: Path, board: str, distortion: str) -> dict[str, Any]:
     ours_c = [None if d.corners is None else np.asarray(d.corners, float) for d in dets]
     sb, sb_s = opencv_corners(images, pattern, "sb")
     classic, classic_s = opencv_corners(images, pattern, "classic")
-    mask = observed_field_mask([c for c in ours_c if c is not None], w, h)
+    mask = observed_field_mask([c for c in ours_c if c is not None], ImageSize(w, h))
     rows = ours_rows(dets, target, distortion, ours_s)
     rows += [opencv_row("opencv, our corners", ours_c, obj, (w, h), distortion, ours_s),
              opencv_row("opencv, SB corners", sb, obj, (w, h), distortion, sb_s),

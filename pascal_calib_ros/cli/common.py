@@ -91,6 +91,10 @@ def session_defaults(args: argparse.Namespace) -> SessionFolder | bool | None:
         error(str(e))
         return False
     m = folder.manifest
+    if m.cameras:  # a shot of several cameras: the pair's own command calibrates it
+        error(f"{folder.path}: a session of {len(m.cameras)} cameras ({', '.join(m.cameras)}); calibrate it with "
+              f"pascal-calib stereo {folder.path}")
+        return False
     recorded = {"target": folder.target_source(), "distortion": m.distortion_model, "gamma": m.gamma,
                 "camera_name": m.camera_name}
     for k, v in recorded.items():

@@ -26,7 +26,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     e.set_defaults(func=cmd_experiment)
     s = sub.add_parser("study", help="accuracy studies against ground truth (see README)")
     s.add_argument("name", choices=["accuracy", "edge-bias", "grids", "target-shape", "lenses", "handeye", "trust",
-                                        "model-bias", "verify", "stereo", "guided", "boards"])
+                                        "model-bias", "verify", "stereo", "guided", "boards", "undesigned"])
     s.add_argument("--sessions", type=int, default=None,
                    help="verify: verification sessions per scenario (default 20); stereo: sessions of the accuracy "
                         "table (default 5)")
@@ -40,7 +40,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--targets", default="ring_a4,checkerboard_a4", help="handeye: targets, comma-separated")
     s.add_argument("--arm-systematic-mm", type=float, default=0.25,
                    help="handeye: amplitude of the arm's systematic position error field (0: random arm noise only)")
-    s.add_argument("--seeds", type=int, default=20, help="guided: sessions per case and strategy")
+    s.add_argument("--seeds", type=int, default=None, help="guided: sessions per case and strategy (default 20); "
+                                                           "undesigned: sessions, seeds 1..N (default 3)")
     s.add_argument("--arm-cell", default="study", choices=["study", "arm"],
                    help="guided, arm case: the cell's noise (study: sensor noise 1.5, arm 0.01 deg / 0.1 mm; arm: "
                         "0.5, 0.03 deg / 0.3 mm, the arm's share dominant)")
@@ -74,7 +75,7 @@ def cmd_study(args: argparse.Namespace) -> int:
     if args.name == "guided":
         from ..studies import run_guided_study
 
-        run_guided_study(Path(args.out), seeds=args.seeds, quick=args.quick, only=args.only, jobs=args.jobs,
+        run_guided_study(Path(args.out), seeds=args.seeds or 20, quick=args.quick, only=args.only, jobs=args.jobs,
                          draws=args.draws or 0, arm=(args.arm_cell, args.arm_guide))
         return EXIT_OK
     if args.name == "trust":
@@ -104,6 +105,14 @@ def cmd_study(args: argparse.Namespace) -> int:
         from ..studies import boards_study
 
         boards_study(Path(args.out), views=args.views or 12, seed=args.seed)
+        return EXIT_OK
+    if args.name == "undesigned":
+        from ..studies import undesigned_views
+
+        found = undesigned_views(tuple(range(1, (args.seeds or 3) + 1)), views=args.views or 16)
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "undesigned_views.json").write_text(json.dumps(found, indent=1, default=str) + "\n")
         return EXIT_OK
     from ..studies import run_study
 

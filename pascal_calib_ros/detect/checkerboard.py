@@ -38,7 +38,7 @@ import numpy as np
 
 from ..geometry import CircularPointError, centre_image_from_ring
 from ..targets import Checkerboard, Target
-from .detection import Detection
+from .detection import Detection, DetectionRefusal
 from .saddle import SaddleFit, refine_saddles
 
 COARSE_PIXELS = 600_000  # the board is searched on a copy halved until it has at most this many pixels
@@ -83,11 +83,12 @@ def find_checkerboard(gray8: np.ndarray, target: Target, det: Detection | None =
 
 
 def _tell(det: Detection | None, text: str, refuse: bool = False) -> None:
-    """Say ``text`` on the detection: as its reason (the view refused) or appended to its note."""
+    """Say ``text`` on the detection: as its reason (the view refused: too few of the board's
+    corners are saddles) or appended to its note."""
     if det is None:
         return
     if refuse:
-        det.reason = text
+        det.refuse(DetectionRefusal.TOO_FEW_FEATURES, text)
     else:
         det.note = f"{det.note}; {text}" if det.note else text
 

@@ -26,11 +26,16 @@ import numpy as np
 from ..errors import PascalCalibError
 from ..geometry import Ellipse, conics_from_ellipses, group_medians
 from ..targets import CircleGrid, Target
+from .detection import DetectionRefusal
 from .edges import EdgeFit, refine_edges_batch
 
 
 class GridError(PascalCalibError):
-    pass
+    """A grid not usable in this view; ``kind`` says why."""
+
+    def __init__(self, message: str, kind: DetectionRefusal = DetectionRefusal.OTHER) -> None:
+        super().__init__(message)
+        self.kind = kind
 
 
 def concentric_fit(outer: Ellipse, hole: Ellipse) -> tuple[float, float]:
@@ -88,7 +93,7 @@ def label_lattice(centres: np.ndarray, sizes: np.ndarray) -> dict[int, tuple[int
     """Integer lattice coordinates (i, j) for the candidates connected to the best seed."""
     n = len(centres)
     if n < 5:
-        raise GridError(f"only {n} grid-like circle(s) found")
+        raise GridError(f"only {n} grid-like circle(s) found", DetectionRefusal.TOO_FEW_FEATURES)
     d = np.linalg.norm(centres[:, None] - centres[None], axis=2)
     np.fill_diagonal(d, np.inf)
     order = np.argsort(d, axis=1)[:, : min(8, n - 1)]
@@ -129,7 +134,8 @@ def label_lattice(centres: np.ndarray, sizes: np.ndarray) -> dict[int, tuple[int
             found = (int(k), q[1], q[2])
             break
     if found is None:
-        raise GridError("no element with four grid neighbours: not a grid, or too few circles visible")
+        raise GridError("no element with four grid neighbours: not a grid, or too few circles visible",
+                        DetectionRefusal.NO_TARGET)
     seed, u0, v0 = found
     return _grow_lattice(centres, sizes, seed, u0, v0)
 
@@ -182,7 +188,7 @@ def _grow_lattice(centres: np.ndarray, sizes: np.ndarray, seed: int, u0: np.ndar
             if m in labels:
                 if labels[m] != lab:
                     raise GridError(f"inconsistent grid labelling: element at ({pts[m][0]:.0f}, "
-                                    f"{pts[m][1]:.0f}) reached as {labels[m]} and {lab}")
+                                    f"{pts[m][1]:.0f}) reached as {labels[m]} and {lab}", DetectionRefusal.AMBIGUOUS)
                 continue
             if lab in taken:
                 continue
@@ -220,7 +226,8 @@ def detect_grid(work: np.ndarray, blobs: list, target: Target, grid_index: int, 
     grid = target.grids[grid_index]
     cands = _element_candidates(blobs, grid)
     if len(cands) < 5:
-        raise GridError(f"no {grid.kind} grid found ({len(cands)} {grid.kind}-like circle(s))")
+        raise GridError(f"no {grid.kind} grid found ({len(cands)} {grid.kind}-like circle(s))",
+                        DetectionRefusal.NO_TARGET)
     centres = np.array([[e.cx, e.cy] for e, _, _ in cands])
     sizes = np.array([np.sqrt(e.a * e.b) for e, _, _ in cands])
     keys, rows_idx, cols_idx = _grid_rows_cols(centres, sizes, grid)
@@ -252,7 +259,7 @@ def _grid_rows_cols(centres: np.ndarray, sizes: np.ndarray, grid: CircleGrid
     +column, +row keep the target's handedness (a labelling is never mirrored)."""
     labels = label_lattice(centres, sizes)
     if len(labels) < 6:
-        raise GridError(f"only {len(labels)} connected grid element(s) found")
+        raise GridError(f"only {len(labels)} connected grid element(s) found", DetectionRefusal.TOO_FEW_FEATURES)
     ij = np.array(list(labels.values()))
     keys = list(labels.keys())
     best = None
@@ -269,7 +276,7 @@ def _grid_rows_cols(centres: np.ndarray, sizes: np.ndarray, grid: CircleGrid
     du = [ci[(a + 1, b)] - ci[(a, b)] for (a, b) in ci if (a + 1, b) in ci]
     dv = [ci[(a, b + 1)] - ci[(a, b)] for (a, b) in ci if (a, b + 1) in ci]
     if not du or not dv:
-        raise GridError("grid elements found along one line only")
+        raise GridError("grid elements found along one line only", DetectionRefusal.TOO_FEW_FEATURES)
     mu, mv = np.mean(du, 0), np.mean(dv, 0)
     if (mu[0] * mv[1] - mu[1] * mv[0]) < 0:  # i -> col (x), j -> row (y) must keep handedness
         ij[:, 1] = -ij[:, 1]
@@ -280,7 +287,7 @@ def _grid_rows_cols(centres: np.ndarray, sizes: np.ndarray, grid: CircleGrid
         # rotate the labelling by 90 degrees (i, j) -> (j, -i): still not mirrored
         return keys, (-ij[:, 0]) - (-ij[:, 0]).min(), ij[:, 1] - ij[:, 1].min()
     raise GridError(f"found a {span_i} x {span_j} lattice, larger than the {grid.cols} x {grid.rows} grid "
-                    "(another grid or clutter in view?)")
+                    "(another grid or clutter in view?)", DetectionRefusal.AMBIGUOUS)
 
 
 @dataclass

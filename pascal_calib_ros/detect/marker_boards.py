@@ -30,7 +30,7 @@ import cv2
 import numpy as np
 
 from ..target_boards import AprilGrid, CharucoBoard, MarkerBoard, aruco_dictionary
-from .detection import Detection
+from .detection import Detection, DetectionRefusal
 from .saddle import SaddleFit, refine_saddles
 
 MIN_CORNERS = 6  # a view with fewer measured corners is refused (camera_calibration asks as many)
@@ -189,10 +189,10 @@ def find_marker_board(gray8: np.ndarray, board: MarkerBoard, det: Detection | No
         det.marker_ids, det.marker_corners = markers.ids.copy(), markers.corners.copy()
     if len(markers.ids) < 2 and _mirrored(gray8, board, len(markers.ids)):
         return _refuse(det, f"{board.kind} board seen mirrored (a flipped image, or the board printed mirrored?)",
-                       notes)
+                       notes, DetectionRefusal.MIRRORED)
     if not len(markers.ids):
         why = "no marker of this board found" if not notes else notes[-1]
-        return _refuse(det, f"{board.kind}: {why}", notes)
+        return _refuse(det, f"{board.kind}: {why}", notes, DetectionRefusal.NO_TARGET)
     est = corner_estimates(gray8, board, markers)
     seen = np.all(np.isfinite(est), 1)
     out = np.full_like(est, np.nan)
@@ -208,19 +208,20 @@ def find_marker_board(gray8: np.ndarray, board: MarkerBoard, det: Detection | No
             notes.append(f"{int((~ok).sum())} of {int(seen.sum())} corners not on a saddle left out")
     measured = np.all(np.isfinite(out), 1)
     if measured.sum() < MIN_CORNERS:
-        return _refuse(det, f"{board.kind}: {int(measured.sum())} corners measured; need {MIN_CORNERS}", notes)
+        return _refuse(det, f"{board.kind}: {int(measured.sum())} corners measured; need {MIN_CORNERS}", notes,
+                       DetectionRefusal.TOO_FEW_FEATURES)
     if not spread_ok(board, measured):
         return _refuse(det, f"{board.kind}: the {int(measured.sum())} corners seen lie along one row of the board; "
-                            "show more of it", notes)
+                            "show more of it", notes, DetectionRefusal.TOO_FEW_FEATURES)
     if det is not None and notes:
         det.note = "; ".join([det.note, *notes]) if det.note else "; ".join(notes)
     return out
 
 
-def _refuse(det: Detection | None, reason: str, notes: list[str]) -> np.ndarray | None:
-    """None, the view refused with ``reason`` (and what was left out) on ``det``."""
+def _refuse(det: Detection | None, reason: str, notes: list[str], kind: DetectionRefusal) -> np.ndarray | None:
+    """None, the view refused with ``kind`` and ``reason`` (and what was left out) on ``det``."""
     if det is not None:
-        det.reason = reason
+        det.refuse(kind, reason)
         if notes:
             det.note = "; ".join(notes)
     return None

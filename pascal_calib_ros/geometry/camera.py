@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .image_size import ImageSize
 from .lens import PLUMB_BOB, LensModel, model_for_coefficients
 
 INTRINSIC_BASE = ("fx", "fy", "cx", "cy", "skew")
@@ -58,6 +59,11 @@ class Camera:
         rays = self.unproject(uv)
         z = np.where(rays[..., 2] > 0, rays[..., 2], np.nan)
         return rays[..., :2] / z[..., None]
+
+    @property
+    def size(self) -> ImageSize:
+        """The image size (width, height)."""
+        return ImageSize(self.width, self.height)
 
 
 def pixels_to_normalized(uv: np.ndarray, K: np.ndarray) -> np.ndarray:
@@ -144,7 +150,7 @@ def rotation_to_rvec(R: np.ndarray) -> np.ndarray:
     return axis * th
 
 
-def model_error(cam_a: Camera, cam_b: Camera, width: int, height: int, step: int = 16,
+def model_error(cam_a: Camera, cam_b: Camera, size: ImageSize, step: int = 16,
                 mask: np.ndarray | None = None) -> float:
     """RMS pixel displacement over the image between two cameras (same rays, both models).
 
@@ -153,6 +159,7 @@ def model_error(cam_a: Camera, cam_b: Camera, width: int, height: int, step: int
     (height, width), if given, restricts the grid to pixels where it is true (e.g. the observed
     field); pixels whose ray either model cannot map are left out.
     """
+    width, height = size
     us, vs = np.meshgrid(np.arange(0, width, step) + 0.5, np.arange(0, height, step) + 0.5)
     uv = np.stack([us.ravel(), vs.ravel()], 1)
     if mask is not None:
@@ -178,7 +185,7 @@ def calibration_errors(truth: Camera, K: np.ndarray, D: np.ndarray, model: str =
         "pp_err_px": float(np.hypot(K[0, 2] - truth.K[0, 2], K[1, 2] - truth.K[1, 2])),
         "model_err_px": model_error(truth, Camera(K, D, truth.width, truth.height,
                                                   model_for_coefficients(D, model).name),
-                                    truth.width, truth.height, mask=mask),
+                                    truth.size, mask=mask),
     }
 
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import PascalCalibError
+from .image_size import ImageSize
 
 # Thresholds on the degeneracy ratio (smallest non-null / largest singular value), PAPER.md
 DEGENERACY_REJECT = 0.01
@@ -36,8 +37,9 @@ class IacSolution:
     warning: str = ""
 
 
-def image_normalization(width: float, height: float) -> np.ndarray:
+def image_normalization(size: ImageSize) -> np.ndarray:
     """T taking pixels to coordinates centred on the image, scaled by (W + H) / 4."""
+    width, height = size
     s = 4.0 / (width + height)
     return np.array([[s, 0, -s * width / 2], [0, s, -s * height / 2], [0, 0, 1.0]])
 
@@ -94,7 +96,7 @@ def k_from_omega(omega: np.ndarray) -> np.ndarray:
     return K / K[2, 2]
 
 
-def iac_from_circular_points(points: list[np.ndarray], width: float, height: float,
+def iac_from_circular_points(points: list[np.ndarray], size: ImageSize,
                              zero_skew: bool = False) -> IacSolution:
     """Solve A w = 0 in normalised coordinates (SVD), check degeneracy and definiteness, K by
     Cholesky. ``points`` holds one i' (complex homogeneous 3-vector, pixels) per view or circle
@@ -105,7 +107,7 @@ def iac_from_circular_points(points: list[np.ndarray], width: float, height: flo
         raise DegenerateViewsError(
             f"{len(points)} view(s) give {2 * len(points)} equations; w needs {unknowns - 1}: "
             f"capture at least {needed} views with the target at different tilts")
-    T = image_normalization(width, height)
+    T = image_normalization(size)
     A = constraint_matrix(points, T, zero_skew)
     if not np.all(np.isfinite(A)):
         raise DegenerateViewsError("a circular point is at infinity or invalid (fronto-parallel view?)")
@@ -126,13 +128,14 @@ def iac_from_circular_points(points: list[np.ndarray], width: float, height: flo
     return IacSolution(K, omega / np.linalg.norm(omega), ratio, warning)
 
 
-def iac_focal_only(points: list[np.ndarray], width: float, height: float) -> IacSolution:
+def iac_focal_only(points: list[np.ndarray], size: ImageSize) -> IacSolution:
     """w of a camera with square pixels, no skew and the principal point at the image centre: the
     start when the full w is not positive definite. In coordinates centred on the image,
     K = diag(f, f, 1) and w ~ diag(1, 1, f^2), so each i' = (x, y, z) gives x^2 + y^2 + f^2 z^2 = 0;
     f^2 by least squares over the views (each i' scaled to unit norm):
     f^2 = -Re(sum conj(z^2) (x^2 + y^2)) / sum |z|^4. Raises :class:`IndefiniteOmegaError` when
     f^2 <= 0 (the circular points contradict any such camera)."""
+    width, height = size
     c = np.array([width / 2.0, height / 2.0, 0.0])
     num, den = 0.0, 0.0
     for i in points:

@@ -6,16 +6,20 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from .image_size import ImageSize
 
-def grid_shape(width: int, height: int, step: float) -> tuple[int, int]:
+
+def grid_shape(size: ImageSize, step: float) -> tuple[int, int]:
     """(rows, cols) of :func:`grid_pixels` without a mask."""
+    width, height = size
     return len(np.arange(step / 2, height, step)), len(np.arange(step / 2, width, step))
 
 
-def grid_pixels(width: int, height: int, step: float, mask: np.ndarray | None = None) -> np.ndarray:
+def grid_pixels(size: ImageSize, step: float, mask: np.ndarray | None = None) -> np.ndarray:
     """Pixels (N, 2) at the centres of step x step cells over a width x height image, row by row;
     with ``mask`` (height, width), only those where it is true. The one grid the distortion field,
     the projection uncertainty and the projection difference are evaluated on."""
+    width, height = size
     us, vs = np.meshgrid(np.arange(step / 2, width, step), np.arange(step / 2, height, step))
     uv = np.stack([us.ravel(), vs.ravel()], 1)
     if mask is not None:
@@ -34,8 +38,9 @@ def view_hulls(points_per_view: list[np.ndarray]) -> list[np.ndarray]:
     return hulls
 
 
-def hulls_mask(hulls: list[np.ndarray], width: int, height: int, margin: float = 0.0) -> np.ndarray:
+def hulls_mask(hulls: list[np.ndarray], size: ImageSize, margin: float = 0.0) -> np.ndarray:
     """(height, width) bool: pixels inside some polygon of ``hulls``, grown by ``margin`` pixels."""
+    width, height = size
     mask = np.zeros((height, width), np.uint8)
     for h in hulls:
         cv2.fillConvexPoly(mask, np.round(np.asarray(h, float)).astype(np.int32).reshape(-1, 1, 2), 1)
@@ -45,8 +50,8 @@ def hulls_mask(hulls: list[np.ndarray], width: int, height: int, margin: float =
     return mask.astype(bool)
 
 
-def observed_field_mask(points_per_view: list[np.ndarray], width: int, height: int, margin: float = 0.0
+def observed_field_mask(points_per_view: list[np.ndarray], size: ImageSize, margin: float = 0.0
                         ) -> np.ndarray:
     """(height, width) bool: pixels inside the convex hull of some view's points, grown by
     ``margin`` pixels."""
-    return hulls_mask(view_hulls(points_per_view), width, height, margin)
+    return hulls_mask(view_hulls(points_per_view), size, margin)

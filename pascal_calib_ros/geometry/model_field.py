@@ -19,7 +19,7 @@ def distortion_field(cam: Camera, step: int = 32, mask: np.ndarray | None = None
     """Grid of pixels (N, 2) (inside ``mask`` if given) and the displacement (N, 2) from where the
     ideal model of the lens family would image each pixel's ray to the pixel itself; rows whose
     ray the model cannot invert are left out."""
-    uv = grid_pixels(cam.width, cam.height, step, mask)
+    uv = grid_pixels(cam.size, step, mask)
     if not len(uv):
         return uv, np.zeros((0, 2))
     rays = cam.unproject(uv)

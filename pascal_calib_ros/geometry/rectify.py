@@ -33,6 +33,7 @@ import numpy as np
 
 from ..errors import PascalCalibError
 from .camera import RECTIFIED_MAX_HALF_FIELD, Camera
+from .image_size import ImageSize
 
 
 class RectificationError(PascalCalibError):
@@ -64,6 +65,11 @@ class StereoRectification:
     def baseline(self) -> float:
         """Distance of the two rectified camera centres (m), as image_geometry computes it."""
         return float(abs(self.P2[1, 3] / self.P2[1, 1]) if self.vertical else -self.P2[0, 3] / self.P2[0, 0])
+
+    @property
+    def size(self) -> ImageSize:
+        """The image size (width, height)."""
+        return ImageSize(self.width, self.height)
 
 
 def rectified_pixels(camera: Camera, R: np.ndarray, P: np.ndarray, uv: np.ndarray) -> np.ndarray:

@@ -18,7 +18,7 @@ A HAND_EYE.yaml is refused with what to do with it (``pascal-calib export --to u
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -37,16 +37,24 @@ FORMATS = ("json", "opencv", "mrcal", "kalibr", "ros")
 
 @dataclass(frozen=True)
 class CalibrationFile:
-    """A calibration file read: its format, the camera, and the format's extras."""
+    """A calibration file read: its format, the calibrated camera (one :class:`CalibrationRecord`
+    whatever the format: a format without a covariance or an observed field leaves them unknown),
+    and the format's extras."""
 
     path: Path
     format: str  # one of FORMATS
-    camera: Camera
-    camera_name: str = ""
-    record: CalibrationRecord | None = None  # covariance and observed field, where known
+    record: CalibrationRecord
     kalibr: tuple[KalibrCamera, ...] = ()  # every camera of a camchain
     mrcal: MrcalModel | None = None
     notes: tuple[str, ...] = field(default_factory=tuple)
+
+    @property
+    def camera(self) -> Camera:
+        return self.record.camera
+
+    @property
+    def camera_name(self) -> str:
+        return self.record.camera_name
 
     @property
     def T_cn_cnm1(self) -> Transform | None:
@@ -69,20 +77,21 @@ def _ros(p: Path) -> CalibrationFile:
     try:
         info = read_camera_yaml(p)
         cam = Camera(info.K, info.D, info.width, info.height, info.distortion_model)
+        bare = CalibrationRecord(cam, info.camera_name or "camera")
     except (CameraYamlError, ValueError) as e:
         raise CalibrationFileError(f"{p}: not a calibration file this package reads (json, OpenCV FileStorage, "
                                    f"mrcal .cameramodel, Kalibr camchain, ROS camera YAML): {e}") from None
     side = sidecar_path(p)
     if not side.exists():
-        return CalibrationFile(p, "ros", cam, info.camera_name)
+        return CalibrationFile(p, "ros", bare)
     try:
         rec = record_of_document(json.loads(side.read_text()), str(side))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError, CalibrationFileError) as e:
-        return CalibrationFile(p, "ros", cam, info.camera_name, notes=(f"{side.name} ignored: {e}",))
-    if not same_camera(rec.camera, cam):
-        return CalibrationFile(p, "ros", cam, info.camera_name,
+        return CalibrationFile(p, "ros", bare, notes=(f"{side.name} ignored: {e}",))
+    if not same_camera(rec.camera, bare.camera):
+        return CalibrationFile(p, "ros", bare,
                                notes=(f"{side.name} ignored: it holds another camera than {p.name}",))
-    return CalibrationFile(p, "ros", cam, info.camera_name, rec, notes=(f"with {side.name}",))
+    return CalibrationFile(p, "ros", replace(rec, camera=bare.camera), notes=(f"with {side.name}",))
 
 
 def _yaml_formats(p: Path, text: str, camera: str) -> CalibrationFile | None:
@@ -97,7 +106,7 @@ def _yaml_formats(p: Path, text: str, camera: str) -> CalibrationFile | None:
         if not chosen:
             raise CalibrationFileError(f"{p}: no camera {name!r} (it has {', '.join(k.name for k in cams)})")
         notes = (f"camera {name} of {len(cams)}",) if len(cams) > 1 else ()
-        return CalibrationFile(p, "kalibr", chosen[0].camera, name, kalibr=tuple(cams), notes=notes)
+        return CalibrationFile(p, "kalibr", CalibrationRecord(chosen[0].camera, name), kalibr=tuple(cams), notes=notes)
     if isinstance(doc, dict) and "translation" in doc and "rotation" in doc and "camera_matrix" not in doc:
         raise CalibrationFileError(f"{p}: a hand-eye result, not a camera calibration (export it with "
                                    "pascal-calib export --to urdf or --to static_transform)")
@@ -119,12 +128,12 @@ def read_calibration_file(path: str | Path, camera: str = "") -> CalibrationFile
             doc = None
         if looks_like_calibration_json(doc):
             rec = record_of_document(doc, str(p))
-            return CalibrationFile(p, "json", rec.camera, rec.camera_name, rec)
+            return CalibrationFile(p, "json", rec)
     if looks_like_opencv_storage(text):
-        return CalibrationFile(p, "opencv", camera_from_opencv_text(text, str(p)))
+        return CalibrationFile(p, "opencv", CalibrationRecord(camera_from_opencv_text(text, str(p))))
     if looks_like_mrcal(text):
         model = parse_mrcal_model(text, str(p))
-        return CalibrationFile(p, "mrcal", camera_of_mrcal_model(model, str(p)), mrcal=model)
+        return CalibrationFile(p, "mrcal", CalibrationRecord(camera_of_mrcal_model(model, str(p))), mrcal=model)
     found = _yaml_formats(p, text, camera)
     if found is not None:
         return found

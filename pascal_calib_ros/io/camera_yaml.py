@@ -15,7 +15,9 @@ import numpy as np
 import yaml
 
 from ..errors import PascalCalibError
+from ..geometry import ImageSize, rectified_projection
 from .atomic import write_text_atomic
+from .calibration_json import CalibrationRecord
 
 
 class CameraYamlError(PascalCalibError):
@@ -39,6 +41,21 @@ class CameraInfoData:
         if self.P is not None:
             return self.P
         return np.concatenate([self.K, np.zeros((3, 1))], 1)
+
+    @property
+    def size(self) -> ImageSize:
+        """The image size (width, height)."""
+        return ImageSize(self.width, self.height)
+
+
+def camera_info_of(rec: CalibrationRecord, R: np.ndarray | None = None, P: np.ndarray | None = None
+                   ) -> CameraInfoData:
+    """The CameraInfo of a calibrated camera: its K, D and ROS distortion model; R the rectifying
+    rotation (I for a single camera) and P the rectified projection (a pair's P1 / P2; else
+    :func:`~..geometry.camera.rectified_projection`: [K | 0] for pinhole models)."""
+    cam = rec.camera
+    return CameraInfoData(cam.width, cam.height, rec.camera_name, cam.K, np.asarray(cam.D, float), cam.model,
+                          np.eye(3) if R is None else R, rectified_projection(cam) if P is None else P)
 
 
 def _matrix(rows: int, cols: int, data: np.ndarray) -> dict[str, Any]:

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..geometry import Camera
+from ..geometry import Camera, ImageSize
 from .format_error import CalibrationFileError, check_exportable
 from .mrcal_splined import SplinedModel, parse_lensmodel, splined_camera
 
@@ -51,6 +51,11 @@ class MrcalModel:
     height: int
     rt_cam_ref: np.ndarray = field(default_factory=lambda: np.zeros(6))
     valid_intrinsics_region: np.ndarray | None = None  # closed contour (N, 2), first == last
+
+    @property
+    def size(self) -> ImageSize:
+        """The image size (width, height)."""
+        return ImageSize(self.width, self.height)
 
 
 def looks_like_mrcal(text: str) -> bool:

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry import Camera, LensModel
+from ..geometry import Camera, ImageSize, LensModel
 
 PATTERN = re.compile(r"^LENSMODEL_SPLINED_STEREOGRAPHIC_order=(\d+)_Nx=(\d+)_Ny=(\d+)_fov_x_deg=(\d+)$")
 
@@ -126,6 +126,11 @@ class SplinedModel:
         rays = ray_of_stereographic(u)
         rays[bad] = np.nan
         return rays
+
+    @property
+    def size(self) -> ImageSize:
+        """The image size (width, height)."""
+        return ImageSize(self.width, self.height)
 
 
 def design_matrix(model_shape: tuple[int, int, int], u: np.ndarray) -> np.ndarray:

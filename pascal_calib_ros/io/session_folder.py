@@ -8,6 +8,7 @@ Layout::
       session.yaml           # the manifest and the views, rewritten atomically after each view
       target.yaml            # a copy of the target file (when the target was given as a file)
       frames/<name>.png      # each stored frame (lossless), written before session.yaml names it
+      frames/<camera>/<name>.png   # a shot of several cameras (a stereo pair): one frame per camera
 
 ``session.yaml``::
 
@@ -18,9 +19,18 @@ Layout::
       - {name: frame_000012, image: frames/frame_000012.png, stamp_ns: 1700000000000000000,
          translation: [x, y, z], rotation: [qx, qy, qz, qw]}     # the tool in the base (robot sessions)
 
+A session of several cameras (``manifest.cameras``, e.g. ``[left, right]``; ``frame_id`` and
+``child_frame_id`` then hold the left and the right optical frame) records shots: one frame and
+one stamp per camera, in the manifest's order, and why a camera's view was not used (empty: used)::
+
+    views:
+      - {name: shot_000004, images: [frames/left/shot_000004.png, frames/right/shot_000004.png],
+         stamps_ns: [1700000000000000000, 1700000000001000000], not_used: ['', 'moving ...']}
+
 A view exists once ``session.yaml`` names it (:mod:`.atomic`: the file is the old list or the new
-one); a frame written just before a kill and never named is ignored and overwritten. ``~/reset``
-keeps the cleared views as ``cleared-<time>.session.yaml`` beside their frames.
+one); a frame written just before a kill and never named is ignored and overwritten, a named one
+never is (a name is recorded once). ``~/reset`` keeps the cleared views as
+``cleared-<time>.session.yaml`` beside their frames.
 """
 
 from __future__ import annotations
@@ -28,6 +38,7 @@ from __future__ import annotations
 import shutil
 import threading
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -58,28 +69,41 @@ class SessionManifest:
     distortion_model: str = "plumb_bob"
     gamma: float = 1.0
     hand_eye: str = ""  # "", "eye_in_hand" or "eye_to_hand"
-    frame_id: str = ""  # the robot base frame of the poses
-    child_frame_id: str = ""  # the robot tool frame
-    image_size: tuple[int, int] | None = None  # (width, height) of the frames
+    frame_id: str = ""  # the robot base frame of the poses (a stereo pair: the left optical frame)
+    child_frame_id: str = ""  # the robot tool frame (a stereo pair: the right optical frame)
+    image_size: tuple[int, int] | None = None  # (width, height) of the (first camera's) frames
+    cameras: tuple[str, ...] = ()  # the cameras of a shot (a stereo pair: left, right); empty: one camera
 
     def differences(self, other: SessionManifest) -> list[str]:
         """The fields (but the image size) on which ``other`` disagrees with this manifest, as
         ``name: this != other``."""
-        keys = ("target", "camera_name", "distortion_model", "gamma", "hand_eye", "frame_id", "child_frame_id")
+        keys = ("target", "camera_name", "distortion_model", "gamma", "hand_eye", "frame_id", "child_frame_id",
+                "cameras")
         return [f"{k}: {getattr(self, k)!r} != {getattr(other, k)!r}" for k in keys
                 if getattr(self, k) != getattr(other, k)]
 
 
 @dataclass(frozen=True)
 class RecordedView:
-    """One stored view: its name, its frame (relative to the folder), its stamp and robot pose."""
+    """One stored view: its name, its frame (relative to the folder), its stamp and robot pose; a
+    shot of several cameras also has every camera's frame and stamp (``image`` and ``stamp_ns``
+    are the first camera's) and why a camera's view was not used (empty: used)."""
 
     name: str
     image: str
     stamp_ns: int
     robot_pose: Transform | None = None
+    images: tuple[str, ...] = ()
+    stamps_ns: tuple[int, ...] = ()
+    not_used: tuple[str, ...] = ()
 
     def document(self) -> dict[str, Any]:
+        if self.images:
+            shot: dict[str, Any] = {"name": self.name, "images": list(self.images),
+                                    "stamps_ns": [int(t) for t in self.stamps_ns]}
+            if any(self.not_used):
+                shot["not_used"] = list(self.not_used)
+            return shot
         doc: dict[str, Any] = {"name": self.name, "image": self.image, "stamp_ns": int(self.stamp_ns)}
         if self.robot_pose is not None:
             doc["translation"] = [float(x) for x in self.robot_pose.translation]
@@ -87,7 +111,18 @@ class RecordedView:
         return doc
 
 
+def _shot_of(doc: dict[str, Any], where: str) -> RecordedView:
+    images, stamps, not_used = doc["images"], doc.get("stamps_ns") or [], doc.get("not_used") or []
+    if not isinstance(images, list) or not images or not all(isinstance(i, str) for i in images) or (
+            len(stamps) != len(images) or len(not_used) not in (0, len(images))):
+        raise SessionFolderError(f"{where}: shot {doc['name']}: needs one image and one stamp per camera")
+    return RecordedView(doc["name"], images[0], int(stamps[0]), None, tuple(images), tuple(int(t) for t in stamps),
+                        tuple(str(w) for w in not_used) or ("",) * len(images))
+
+
 def _view_of(doc: Any, where: str) -> RecordedView:
+    if isinstance(doc, dict) and isinstance(doc.get("name"), str) and "images" in doc:
+        return _shot_of(doc, where)
     if not isinstance(doc, dict) or not isinstance(doc.get("name"), str) or not isinstance(doc.get("image"), str):
         raise SessionFolderError(f"{where}: a view needs a name and an image")
     pose = None
@@ -106,7 +141,8 @@ def _manifest_of(doc: Any, where: str) -> SessionManifest:
     fields = {k: doc[k] for k in ("camera_name", "distortion_model", "hand_eye", "frame_id", "child_frame_id")
               if isinstance(doc.get(k), str)}
     return SessionManifest(doc["target"], gamma=float(doc.get("gamma", 1.0)),
-                           image_size=(int(size[0]), int(size[1])) if size else None, **fields)
+                           image_size=(int(size[0]), int(size[1])) if size else None,
+                           cameras=tuple(str(c) for c in doc.get("cameras") or ()), **fields)
 
 
 def is_session_folder(path: str | Path) -> bool:
@@ -165,14 +201,38 @@ class SessionFolder:
         """Write a stored view: its frame, then ``session.yaml`` naming it (both atomic).
         Raises :class:`SessionFolderError` with the reason; the view is then not recorded."""
         rel = f"frames/{name}.png"
+        self._write_frames(name, [rel], [image])
+        return self._append(RecordedView(name, rel, int(stamp_ns), robot_pose), image)
+
+    def record_shot(self, name: str, images: Sequence[np.ndarray], stamps_ns: Sequence[int],
+                    not_used: Sequence[str] = ()) -> RecordedView:
+        """Write a stored shot of the manifest's cameras: each camera's frame, then ``session.yaml``
+        naming the shot (all atomic); ``not_used[c]`` says why camera c's view was not used (empty:
+        used). Raises :class:`SessionFolderError` with the reason; the shot is then not recorded."""
+        cams = self.manifest.cameras
+        if not cams or len(images) != len(cams) or len(stamps_ns) != len(cams) or len(not_used) not in (0, len(cams)):
+            raise SessionFolderError(f"a shot of {self.path} needs one frame and one stamp for each of its cameras "
+                                     f"({', '.join(cams) or 'none recorded'})")
+        rels = [f"frames/{c}/{name}.png" for c in cams]
+        self._write_frames(name, rels, images)
+        view = RecordedView(name, rels[0], int(stamps_ns[0]), None, tuple(rels), tuple(int(t) for t in stamps_ns),
+                            tuple(str(w) for w in not_used) or ("",) * len(cams))
+        return self._append(view, images[0])
+
+    def _write_frames(self, name: str, rels: list[str], images: Sequence[np.ndarray]) -> None:
+        with self._lock:
+            if any(v.name == name for v in self.views):  # a recorded frame is never overwritten
+                raise SessionFolderError(f"{self.path} already records a view named {name}")
         try:
-            write_bytes_atomic(self.path / rel, encode_image(image, ".png"))
+            for rel, image in zip(rels, images, strict=True):
+                write_bytes_atomic(self.path / rel, encode_image(image, ".png"))
         except (FileWriteError, ImageWriteError) as e:
             raise SessionFolderError(str(e)) from None
-        view = RecordedView(name, rel, int(stamp_ns), robot_pose)
+
+    def _append(self, view: RecordedView, first: np.ndarray) -> RecordedView:
         with self._lock:
             if self.manifest.image_size is None:
-                self.manifest = replace(self.manifest, image_size=(int(image.shape[1]), int(image.shape[0])))
+                self.manifest = replace(self.manifest, image_size=(int(first.shape[1]), int(first.shape[0])))
             self.views.append(view)
             try:
                 self._write()
@@ -181,10 +241,12 @@ class SessionFolder:
                 raise
         return view
 
-    def image(self, view: RecordedView) -> np.ndarray:
-        """A recorded view's frame (:class:`SessionFolderError` when it cannot be read)."""
+    def image(self, view: RecordedView, camera: int = 0) -> np.ndarray:
+        """A recorded view's frame (a shot: camera ``camera``'s; :class:`SessionFolderError` when it
+        cannot be read)."""
+        rel = view.images[camera] if view.images else view.image
         try:
-            return read_grey(self.path / view.image)
+            return read_grey(self.path / rel)
         except ImageReadError as e:
             raise SessionFolderError(f"view {view.name}: {e}") from None
 
@@ -215,4 +277,5 @@ class SessionFolder:
         m = self.manifest
         return {"target": m.target, "camera_name": m.camera_name, "distortion_model": m.distortion_model,
                 "gamma": float(m.gamma), "hand_eye": m.hand_eye, "frame_id": m.frame_id,
-                "child_frame_id": m.child_frame_id, "image_size": list(m.image_size) if m.image_size else None}
+                "child_frame_id": m.child_frame_id, "image_size": list(m.image_size) if m.image_size else None,
+                **({"cameras": list(m.cameras)} if m.cameras else {})}

@@ -26,7 +26,8 @@ import yaml
 from ..errors import PascalCalibError
 from ..geometry import Camera, StereoRectification, Transform
 from .atomic import write_text_atomic
-from .camera_yaml import CameraInfoData, write_camera_yaml
+from .calibration_json import CalibrationRecord
+from .camera_yaml import CameraInfoData, camera_info_of, write_camera_yaml
 from .tf_command import static_transform_command
 
 
@@ -52,10 +53,8 @@ def pair_camera_infos(left: Camera, right: Camera, rect: StereoRectification, na
                       ) -> tuple[CameraInfoData, CameraInfoData]:
     """The two CameraInfo contents of a rectified pair: K, D of each camera, R = R1 / R2,
     P = P1 / P2, names ``name/left`` and ``name/right``."""
-    return (CameraInfoData(left.width, left.height, f"{name}/left", left.K, np.asarray(left.D, float), left.model,
-                           rect.R1, rect.P1),
-            CameraInfoData(right.width, right.height, f"{name}/right", right.K, np.asarray(right.D, float),
-                           right.model, rect.R2, rect.P2))
+    return (camera_info_of(CalibrationRecord(left, f"{name}/left"), rect.R1, rect.P1),
+            camera_info_of(CalibrationRecord(right, f"{name}/right"), rect.R2, rect.P2))
 
 
 def write_pair_yamls(out_dir: str | Path, left: Camera, right: Camera, rect: StereoRectification,

@@ -24,7 +24,15 @@ from ..analysis import (
 )
 from ..calibrate import CalibrationResult
 from ..detect import Detection, feature_points
-from ..geometry import distortion_field, grid_pixels, grid_shape, model_valid, observed_field_mask, view_hulls
+from ..geometry import (
+    ImageSize,
+    distortion_field,
+    grid_pixels,
+    grid_shape,
+    model_valid,
+    observed_field_mask,
+    view_hulls,
+)
 
 FIELD_MARGIN = 30.0  # px around the observed field where the distortion field is still drawn
 
@@ -71,21 +79,21 @@ def report_data(a: Assessment, dets: list[Detection]) -> ReportData:
     if not sum(len(p) for p in pts):  # not refined (closed form only): the used detections' features
         used = {v.name for v in res.views if v.used}
         pts = [feature_points(d) for d in dets if d.name in used]
-    field = observed_field_mask(pts, w, h)
+    field = observed_field_mask(pts, ImageSize(w, h))
     s = residual_samples_of(res)
-    reg = regional(s, w, h)
+    reg = regional(s, ImageSize(w, h))
     rad = radial(s, (float(res.K[0, 2]), float(res.K[1, 2])))
     uv, disp = distortion_field(cam, DISTORTION_STEP, mask=res.observed_field(FIELD_MARGIN))
     held = model_valid(cam, uv)  # a fold inside the margin must not set the colour scale either
     uv, disp = uv[held], disp[held]
-    valid = model_valid(cam, grid_pixels(w, h, VALID_STEP)).reshape(grid_shape(w, h, VALID_STEP))
+    valid = model_valid(cam, grid_pixels(ImageSize(w, h), VALID_STEP)).reshape(grid_shape(ImageSize(w, h), VALID_STEP))
     n_views = len(pts)
     sq = np.bincount(s.view, np.sum(s.vectors**2, 1), minlength=n_views)
     cnt = np.bincount(s.view, minlength=n_views)
     return ReportData(assessment=a, dets=dets, used_names=[v.name for v in res.views if v.used][:n_views],
                       hulls=view_hulls(pts), field=field, samples=s, regional=reg, radial=rad,
-                      bias=model_bias(reg, rad, w, h, res.model),
-                      views_per_region=views_per_region(pts, w, h, reg.grid),
+                      bias=model_bias(reg, rad, ImageSize(w, h), res.model),
+                      views_per_region=views_per_region(pts, ImageSize(w, h), reg.grid),
                       dist_uv=uv, dist_disp=disp, valid_grid=valid,
                       view_rms=np.where(cnt > 0, np.sqrt(sq / np.maximum(cnt, 1)), np.nan))
 

@@ -22,7 +22,7 @@ import numpy as np
 from ..analysis import epipolar_samples
 from ..calibrate import RigResult
 from ..detect import Detection
-from ..geometry import StereoRectification, rectify_maps
+from ..geometry import ImageSize, StereoRectification, rectify_maps
 from ..targets import Target
 
 ShotImage = Callable[[int, int], "np.ndarray | None"]  # (camera, shot) -> grey image (None: not at hand)
@@ -35,7 +35,8 @@ def _best_shot(rig: RigResult, dets: list[list[Detection]]) -> int | None:
     return int(max(both, key=lambda s: len(dets[0][s].edges) + len(dets[1][s].edges)))
 
 
-def _panel_epipolar(ax: Any, fig: Any, uv: np.ndarray, d: np.ndarray, width: int, height: int) -> None:
+def _panel_epipolar(ax: Any, fig: Any, uv: np.ndarray, d: np.ndarray, size: ImageSize) -> None:
+    width, height = size
     lim = float(np.percentile(np.abs(d), 99)) if len(d) else 1.0
     sc = ax.scatter(uv[:, 0], uv[:, 1], c=d, s=6, cmap="coolwarm", vmin=-lim, vmax=lim)
     ax.set_xlim(0, width)
@@ -79,7 +80,7 @@ def write_stereo_report(out_dir: str | Path, rig: RigResult, rect: StereoRectifi
     text = [w for line in lines if not line.startswith("  shot") for w in textwrap.wrap(line, 95) or [""]]
     ax[0][0].axis("off")
     ax[0][0].text(0.0, 1.0, "\n".join(["stereo pair", "", *text[:40]]), va="top", family="monospace", fontsize=7.5)
-    _panel_epipolar(ax[0][1], fig, uv, d, cam.width, cam.height)
+    _panel_epipolar(ax[0][1], fig, uv, d, cam.size)
     if len(d):
         ax[1][1].hist(d, bins=60, color="tab:blue")
     rms = float(np.sqrt(np.mean(d * d))) if len(d) else float("nan")

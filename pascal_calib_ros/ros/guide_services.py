@@ -9,11 +9,17 @@ from the previous call's estimate (:class:`~..workflows.suggest.WarmArmSuggestio
 from __future__ import annotations
 
 import time
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, Protocol
 
 import numpy as np
 from geometry_msgs.msg import PoseArray, PoseStamped
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.callback_groups import CallbackGroup, MutuallyExclusiveCallbackGroup
+from rclpy.publisher import Publisher
+from rclpy.qos import QoSProfile
+from rclpy.service import Service
+from std_msgs.msg import Header
 from std_srvs.srv import Trigger
 
 from ..calibrate import CalibrationOptions
@@ -22,13 +28,40 @@ from ..errors import PascalCalibError
 from ..geometry import Camera, Placement
 from ..io import Suggestions, read_calibration_file
 from ..modes import HandEyeMode
-from ..session import Answer, GuidedLive, GuideView, draw_guide
+from ..session import Answer, GuidedLive, GuideView, LiveSession, draw_guide
+from ..targets import Target
 from ..workflows import SuggestOptions, WarmArmSuggestions, suggest_for_person
 from .conversions import tool_poses_msg
 from .guard import guarded_service
+from .node_parts import NodeCore
+from .robot_poses import RobotPoseInput
 
-if TYPE_CHECKING:
-    from .calibration_node import CalibrationNode
+
+class GuidedNode(NodeCore, Protocol):
+    """What the guide uses of the node (:class:`.calibration_node.CalibrationNode`): the target, the
+    stored views and their robot poses, the calibration file, its publishers and services."""
+
+    target: Target
+    session: LiveSession
+    robot: RobotPoseInput | None
+
+    @property
+    def method(self) -> str: ...
+
+    def calibration_path(self) -> Path: ...
+
+    def publish_status(self) -> None: ...
+
+    def log(self, message: str, ok: bool) -> None: ...
+
+    def _header(self) -> Header: ...
+
+    def resolve_topic_name(self, topic: str) -> str: ...
+
+    def create_publisher(self, msg_type: Any, topic: str, qos_profile: QoSProfile | int) -> Publisher: ...
+
+    def create_service(self, srv_type: Any, srv_name: str, callback: Callable[[Any, Any], Any], *,
+                       callback_group: CallbackGroup | None = None) -> Service: ...
 
 
 def _vec(v: list[float], digits: int = 4) -> str:
@@ -66,7 +99,7 @@ def person_answer(s: Suggestions) -> str:
             f"sigma {best.predicted_sigma_px:.4f} px; {now}")
 
 
-def previous_camera(node: CalibrationNode) -> Camera | None:
+def previous_camera(node: GuidedNode) -> Camera | None:
     """The camera of the node's calibration file (``calibration_file``, else where ``~/calibrate``
     writes it), if one is there: the guide draws its first views with it instead of a nominal
     camera (focal = image width). An unreadable file (a field missing or null, not a calibration) is
@@ -88,7 +121,7 @@ def previous_camera(node: CalibrationNode) -> Camera | None:
 class NodeGuide:
     """The guide's interfaces on ``node`` (module docstring); the person guide only with ``guide``."""
 
-    def __init__(self, node: CalibrationNode, services: Any, latched: Any) -> None:
+    def __init__(self, node: GuidedNode, services: Any, latched: Any) -> None:
         """``services``: the callback group of the node's quick services; ``latched``: its reliable,
         transient-local QoS."""
         self.node = node

@@ -13,6 +13,8 @@ from collections.abc import Callable
 import rclpy
 from rclpy.node import Node
 
+from .stereo_node import StereoCalibrationNode
+
 
 def requested_mode(node_name: str = "pascal_calib") -> str:
     """The ``mode`` parameter given to ``node_name`` (``mono`` when not given); any other value is
@@ -29,7 +31,5 @@ def make_calibration_node(mono: Callable[[], Node]) -> Node:
     """The node of the ``mode`` parameter: ``mono()`` (the
     :class:`~.calibration_node.CalibrationNode`) or the :class:`~.stereo_node.StereoCalibrationNode`."""
     if requested_mode("pascal_calib") == "stereo":
-        from .stereo_node import StereoCalibrationNode
-
         return StereoCalibrationNode()
     return mono()

@@ -3,18 +3,30 @@ published calibration (and the hand-eye result), :mod:`..workflows.verify`."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from pathlib import Path
+from typing import Any, Protocol
 
+from ..calibrate import CalibrationResult
 from ..errors import PascalCalibError
 from ..io import CalibrationRecord, read_calibration_file
-from ..session import Answer
+from ..session import Answer, LiveSession
+from ..targets import Target
 from ..workflows import hand_eye_reference_of_result, record_of_result, reference_of_file, verify_detections
-
-if TYPE_CHECKING:
-    from .calibration_node import CalibrationNode
+from .node_parts import NodeCore
 
 
-def run_verification(node: CalibrationNode) -> Answer:
+class VerifiedNode(NodeCore, Protocol):
+    """What ``~/verify`` uses of the node (:class:`.calibration_node.CalibrationNode`)."""
+
+    session: LiveSession
+    target: Target
+    result: CalibrationResult | None
+    hand_eye_result: Any  # (HandEyeResult, parent frame, camera frame) of the last ~/calibrate, or None
+
+    def calibration_path(self) -> Path: ...
+
+
+def run_verification(node: VerifiedNode) -> Answer:
     """(success when the test could run, the answer starting with the verdict)."""
     snap = node.session.snapshot()
     try:
@@ -37,7 +49,7 @@ def run_verification(node: CalibrationNode) -> Answer:
     return Answer(True, line)
 
 
-def verify_reference(node: CalibrationNode) -> CalibrationRecord:
+def verify_reference(node: VerifiedNode) -> CalibrationRecord:
     """The calibration under test: this session's last result, else the calibration file (with its
     ``.calibration.json`` beside it for the covariance)."""
     if node.result is not None:

@@ -64,16 +64,18 @@ PARAMS = (
           modes=MONO),
     Param('record_session', 'auto',
           'write every stored view as it is taken (the frame, its stamp and robot pose, and a manifest; see '
-          'Sessions) into `session_dir`: `auto` with `collect:=on_capture` or `output_dir`, `always`, `never`',
-          choices=('auto', 'always', 'never'), modes=MONO),
+          'Sessions; stereo: both frames of a shot and their stamps) into `session_dir`: `auto` with '
+          '`collect:=on_capture` or `output_dir` (stereo: `output_dir`), `always`, `never`',
+          choices=('auto', 'always', 'never')),
     Param('session_dir', '',
           'the session folder; default `<output_dir or ~/.ros/pascal_calib/<camera_name>>/sessions/<time>`, named '
-          'in `~/status` (`session_folder`); `~` is expanded', modes=MONO),
+          'in `~/status` (`session_folder`); `~` is expanded'),
     Param('resume', False,
           'continue the views of an existing session folder (`session_dir`, or the newest under the default '
           'sessions folder): they are detected again and stored before the first frame; the folder must have been'
-          ' recorded with the same target, camera_name, distortion_model, gamma, hand_eye and robot frames',
-          modes=MONO),
+          ' recorded with the same target, camera_name, distortion_model, gamma, hand_eye and robot frames '
+          '(stereo: the shots, with the same target, camera_name, distortion_model, gamma, left_frame and '
+          'right_frame)'),
     Param('zero_skew', True,
           'estimate K with zero skew',),
     Param('distortion_model', 'plumb_bob',

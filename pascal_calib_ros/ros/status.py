@@ -3,17 +3,50 @@ examined and dropped, the robot poses, the last result, hand-eye and verificatio
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+import threading
+from typing import Protocol
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from std_msgs.msg import Header
 
+from ..calibrate import CalibrationResult
 from ..report import summary_line
+from ..session import LiveSession
+from .guide_services import NodeGuide
+from .node_parts import NodeCore
+from .node_session import NodeSession
+from .robot_poses import RobotPoseInput
+from .tf_static import StaticTransforms
 
-if TYPE_CHECKING:
-    from .calibration_node import CalibrationNode
+
+class StatusNode(NodeCore, Protocol):
+    """What ``~/status`` reads of the node (:class:`.calibration_node.CalibrationNode`)."""
+
+    session: LiveSession
+    result: CalibrationResult | None
+    robot: RobotPoseInput | None
+    calibrating: threading.Lock
+    frames_received: int
+    frames_examined: int
+    frames_dropped: int
+    frames_bad: int
+    last_error: str
+    hand_eye_line: str
+    verify_line: str
+    tf_static: StaticTransforms
+    recording: NodeSession
+    guide: NodeGuide
+
+    def get_name(self) -> str: ...
+
+    def session_frames(self) -> tuple[int, int]: ...
+
+    def dropped_note(self) -> str: ...
+
+    def _header(self) -> Header: ...
 
 
-def status_message(node: CalibrationNode) -> DiagnosticArray:
+def status_message(node: StatusNode) -> DiagnosticArray:
     """The node's status now (one DiagnosticStatus with key-values; README of the node's page)."""
     s = node.session
     with s.lock:

@@ -20,6 +20,11 @@ frame's pose in the left's, header ``left_frame``, child ``right_frame``; it car
 transform on ``/tf_static``, :mod:`.tf_static`), and written (left.yaml, right.yaml, stereo.yaml, the
 calibration records). ``~/commit`` sends each camera's CameraInfo to its own driver's
 ``set_camera_info`` service and reports both answers.
+
+Every stored shot is recorded as it is taken (``record_session``, :class:`.node_session.
+StereoNodeSession`): both frames, then the session file naming the shot, its stamps and which
+camera's view was not used; ``resume:=true`` detects the recorded shots again and stores them
+before the first new pair (``pascal-calib stereo SESSION`` calibrates the folder offline).
 """
 
 from __future__ import annotations
@@ -29,7 +34,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, KeyValue
 from geometry_msgs.msg import TransformStamped
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -41,7 +46,16 @@ from ..calibrate import CalibrationError, CalibrationOptions
 from ..detect import detect_target
 from ..errors import PascalCalibError
 from ..io import FileWriteError, ImageConversionError, compressed_to_grey, image_to_grey
-from ..session import SIDES, Answer, ApproximatePairer, Dropped, StereoSession, max_motion_of, placement_points
+from ..session import (
+    NOT_WRITTEN,
+    SIDES,
+    Answer,
+    ApproximatePairer,
+    Dropped,
+    StereoSession,
+    max_motion_of,
+    placement_points,
+)
 from ..workflows import (
     ResultStore,
     StereoOutcome,
@@ -57,6 +71,7 @@ from .conversions import camera_info_msg, image_msg, transform_msg
 from .guard import guarded_callback, save_frame
 from .image_subscription import MatchedImageSubscription
 from .node_base import LATCHED, CalibrationNodeBase
+from .node_session import StereoNodeSession
 from .params import ParameterError
 from .stereo_status import stereo_status_message
 from .tf_static import StaticTransforms
@@ -84,13 +99,17 @@ class StereoCalibrationNode(CalibrationNodeBase):
         self.frames_not_saved = 0  # stored frames output_dir could not take (save_frame)
         self.pairs_examined = self.pairs_dropped = 0
         self._session_start = 0  # pairs dropped before the last ~/reset
+        self.recording = StereoNodeSession(self)  # the session folder; resume:=true stores its shots again
+        resumed = self.recording.resume()
         self._create_interfaces()
         self.start()
         topics = ", ".join(f"{s.resolved} ({s.qos_name})" for s in self.subs)
+        folder = self.recording.folder
         self.get_logger().info(
             f"stereo: target {self.target.name}, listening on {topics}, pairing stamps within sync_slop "
             f"{float(self.p('sync_slop')):g} s; call {self.resolve_service_name('~/calibrate')} when the status "
-            "says ready")
+            "says ready" + (f"; session folder {folder.path}" + (f" ({resumed} shot(s) resumed)" if resumed else "")
+                            if folder is not None else ""))
 
     def _create_interfaces(self) -> None:
         """Publishers, services, the driver clients and the two image subscriptions (docs/nodes.md)."""
@@ -186,11 +205,18 @@ class StereoCalibrationNode(CalibrationNodeBase):
         for c, m in enumerate(msgs):
             self.frame_ids[c] = m.header.frame_id or self.frame_ids[c]
         params = detection_params(str(self.p("distortion_model")), float(self.p("gamma")))
-        name = f"shot_{self.pairs_examined:06d}"
+        name = f"shot_{self.pairs_examined + self.recording.name_offset:06d}"
         dets = (detect_target(imgs[0], self.target, params, name=name),
                 detect_target(imgs[1], self.target, params, name=name))
-        out = self.session.examine(dets, (_stamp_ns(left), _stamp_ns(right)),
-                                   drawing=self.pub_det.get_subscription_count() > 0)
+        stamps = (_stamp_ns(left), _stamp_ns(right))
+        out = self.session.examine(dets, stamps, drawing=self.pub_det.get_subscription_count() > 0)
+        note = ""
+        if out.stored:  # recorded before the pair is acknowledged: a kill after it loses nothing
+            not_used = tuple("" if ok else line.removeprefix("not used: ")
+                             for ok, line in zip(out.camera_ok, out.camera_lines, strict=True))
+            note = self.recording.record_shot(name, (imgs[0], imgs[1]), stamps, (not_used[0], not_used[1]))
+            if note.startswith(NOT_WRITTEN):
+                self.last_error = note
         if out.stored and self.p("output_dir"):
             for c, side in enumerate(SIDES):  # the CLI's input, and the report's images
                 save_frame(self, Path(self.p("output_dir")) / side / f"{name}.png", imgs[c])
@@ -198,7 +224,7 @@ class StereoCalibrationNode(CalibrationNodeBase):
         if vis is not None:
             self.pub_det.publish(image_msg(vis, left.header))
         if out.stored:
-            self.get_logger().info(out.why)
+            self.log(out.why + (f"; {note}" if note else ""), not note.startswith(NOT_WRITTEN))
             self.publish_status()
         self.auto_calibrate(out.ready, out.both)
 
@@ -225,7 +251,9 @@ class StereoCalibrationNode(CalibrationNodeBase):
         return [n for n in (self.sync_note(), self.busy_note()) if n]
 
     def publish_status(self) -> None:
-        self.pub_status.publish(stereo_status_message(self))
+        msg = stereo_status_message(self)
+        msg.status[0].values.extend(KeyValue(key=k, value=str(v)) for k, v in self.recording.folder_status().items())
+        self.pub_status.publish(msg)
 
     def header(self, side: int) -> Header:
         frame = self.frame_ids[side] or str(self.p(f"{SIDES[side]}_frame"))
@@ -295,7 +323,8 @@ class StereoCalibrationNode(CalibrationNodeBase):
             self._session_start = self.pairs_dropped
         running = " (a running calibration finishes on its own copy of the shots)" if self.calibrating.locked() else ""
         live = self.history.live
-        answer = f"cleared {n} shot(s){running}; the live {live.describe() if live else 'result: none'} is kept"
+        answer = (f"cleared {n} shot(s){running}; the live {live.describe() if live else 'result: none'} is kept"
+                  + self.recording.clear())
         self.get_logger().info(answer)
         self.publish_status()
         return Answer(True, answer)

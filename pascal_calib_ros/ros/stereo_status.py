@@ -4,17 +4,48 @@ pair, why (their stamps differ by more than ``sync_slop``, or one camera sends n
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+import threading
+from typing import Protocol
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from std_msgs.msg import Header
 
-from ..session import SIDES
+from ..session import SIDES, ApproximatePairer, ResultHistory, StereoSession
+from .image_subscription import MatchedImageSubscription
+from .node_parts import NodeCore
+from .tf_static import StaticTransforms
 
-if TYPE_CHECKING:
-    from .stereo_node import StereoCalibrationNode
+
+class StereoStatusNode(NodeCore, Protocol):
+    """What the stereo ``~/status`` reads of the node (:class:`.stereo_node.StereoCalibrationNode`)."""
+
+    session: StereoSession
+    pairer: ApproximatePairer
+    _pending_cv: threading.Condition  # held while the pairer and the pair counts are read
+    pairs_examined: int
+    pairs_dropped: int
+    calibrating: threading.Lock
+    last_error: str
+    frames_bad: list[int]
+    frames_not_saved: int
+    subs: tuple[MatchedImageSubscription, ...]
+    result_line: str
+    report_note: str
+    history: ResultHistory
+    tf_static: StaticTransforms
+
+    def get_name(self) -> str: ...
+
+    def sync_note(self) -> str: ...
+
+    def busy_note(self) -> str: ...
+
+    def pairs_dropped_session(self) -> int: ...
+
+    def header(self, side: int) -> Header: ...
 
 
-def stereo_status_message(node: StereoCalibrationNode) -> DiagnosticArray:
+def stereo_status_message(node: StereoStatusNode) -> DiagnosticArray:
     """The stereo node's status now (one DiagnosticStatus with key-values)."""
     s = node.session
     with s.lock:

@@ -33,7 +33,7 @@ from ..analysis import (
 )
 from ..calibrate import RefineResult
 from ..detect import Detection
-from ..geometry import Camera, Transform
+from ..geometry import Camera, ImageSize, Transform
 from ..targets import Target
 
 MATCH_OVERLAP = 0.85
@@ -62,8 +62,9 @@ def detection_polygon(det: Detection) -> np.ndarray:
     return cv2.convexHull(pts.astype(np.float32)).reshape(-1, 2).astype(float)
 
 
-def overlap(a: np.ndarray, b: np.ndarray, width: int, height: int) -> float:
+def overlap(a: np.ndarray, b: np.ndarray, size: ImageSize) -> float:
     """Intersection over union of two convex polygons (pixels) inside the image."""
+    width, height = size
     if len(a) < 3 or len(b) < 3:
         return 0.0
     w, h = max(width // RASTER, 1), max(height // RASTER, 1)
@@ -148,7 +149,7 @@ class GuideState:
         if not views or not self.avoided:
             return views
         w, h = self.camera_guess.width, self.camera_guess.height
-        keep = distinct_from_all([v.placement for v in views], self.avoided, w, h)
+        keep = distinct_from_all([v.placement for v in views], self.avoided, ImageSize(w, h))
         return [v for v, k in zip(views, keep, strict=True) if k]
 
     def _bootstrap(self) -> None:
@@ -174,11 +175,12 @@ class GuideState:
         self.index = min(before, len(self.suggestions) - 1) if self.suggestions else 0
         return line
 
-    def update(self, refinement: RefineResult | None, width: int, height: int, n_views: int) -> None:
+    def update(self, refinement: RefineResult | None, size: ImageSize, n_views: int) -> None:
         """After a view was captured: with a calibration (``refinement``, of ``n_views`` >= 3
         views) the real sigma and the ranked suggestions; without, the next bootstrap view, or,
         when an earlier calibration ranked views and this recalibration failed, the next of those
         ranked views (never a bootstrap view already taken); the sigma is then unknown."""
+        width, height = size
         if (refinement is None or refinement.covariance is None) and n_views > 3 and self.camera is not None \
                 and len(self.suggestions) > 1:
             self.suggestions = self._allowed(self.suggestions[:self.index] + self.suggestions[self.index + 1:])
@@ -192,7 +194,7 @@ class GuideState:
             self.index = max(0, min(n_views, len(self.suggestions) - 1))
             self.sigma_px = float("nan")
             return
-        s = suggest_views(refinement, self.target, width, height, self.n, avoid=self.avoided)
+        s = suggest_views(refinement, self.target, ImageSize(width, height), self.n, avoid=self.avoided)
         self.sigma_px, self.camera, self.suggestions, self.index = s.sigma_px, s.camera, s.suggestions, 0
 
     def outline(self) -> np.ndarray:
@@ -208,6 +210,6 @@ class GuideState:
         if s is None or not det.ok:
             return Match(0.0, False, "show the whole target" if s is not None else "")
         want, live = self.outline(), detection_polygon(det)
-        ov = overlap(live, want, det.width, det.height)
+        ov = overlap(live, want, det.size)
         ok = ov >= MATCH_OVERLAP
         return Match(ov, ok, "hold still" if ok else hint(live, want, det.width, live_pose, s.pose))

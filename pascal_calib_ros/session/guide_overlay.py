@@ -14,6 +14,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from ..geometry import ImageSize
 from .guide import MATCH_OVERLAP
 from .guided_live import GuideView
 from .overlay import (
@@ -88,7 +89,7 @@ def _draw_progress(picture: np.ndarray, v: GuideView, width: int) -> None:
         return
     u = unit_scale(h)
     font_thick = max(1, round(1.6 * u))
-    x0, y = state_origin(width, h)
+    x0, y = state_origin(ImageSize(width, h))
     x1 = picture.shape[1] - (x0 - width)
     cv2.rectangle(picture, (width, y - round(24 * u)), (picture.shape[1] - 1, y + round(120 * u)), PANEL_BGR, -1)
     p = progress(v)

@@ -39,7 +39,7 @@ from threadpoolctl import threadpool_limits
 from ..calibrate import MIN_VIEWS, CalibrationError, CalibrationOptions, IntrinsicStart, calibrate_warm
 from ..calibrate.handeye import camera_pose
 from ..detect import Detection
-from ..geometry import Camera, Transform
+from ..geometry import Camera, ImageSize, Transform
 from ..targets import Target
 from .guide import GuideState, Match
 
@@ -126,8 +126,9 @@ class GuidedLive:
         self._views: list[Detection] = []  # the stored views of the last update
         self.refused = ""
 
-    def _state(self, width: int, height: int) -> GuideState:
+    def _state(self, size: ImageSize) -> GuideState:
         """The state, made on the first frame (its size gives the nominal camera). Under the lock."""
+        width, height = size
         if self.state is None or self.size != (width, height):
             guess = self.camera_guess
             if guess is None or (guess.width, guess.height) != (width, height):
@@ -140,7 +141,7 @@ class GuidedLive:
     def examine(self, det: Detection) -> GuideVerdict:
         """Whether this frame's detection is to be stored (it matches the suggestion) and the line."""
         with self.lock:
-            state = self._state(det.width, det.height)
+            state = self._state(det.size)
             if self.computing:
                 self.last_match = None
                 return GuideVerdict(False, COMPUTING, None)
@@ -233,7 +234,7 @@ class GuidedLive:
             if self.state is None:
                 if not ok:
                     return
-                self._state(ok[0].width, ok[0].height)
+                self._state(ok[0].size)
             assert self.state is not None
             work, start = copy.copy(self.state), self._start
         error, refinement = "", None
@@ -252,7 +253,7 @@ class GuidedLive:
                 error = f"calibration failed ({type(e).__name__}: {e}); showing a fixed view"
         try:
             with threadpool_limits(1, "blas"):
-                work.update(refinement, self.size[0], self.size[1], len(ok))
+                work.update(refinement, ImageSize(self.size[0], self.size[1]), len(ok))
         except Exception as e:  # a numerical failure must not stop the guide: keep the last suggestions
             error = f"guide update failed: {type(e).__name__}: {e}"
             work = self.state

@@ -25,6 +25,7 @@ import cv2
 import numpy as np
 
 from ..detect import Detection
+from ..geometry import ImageSize
 from .collector import AXES, READY_COVERAGE
 
 LABELS = {"x": "X", "y": "Y", "size": "Size", "skew": "Skew"}
@@ -101,9 +102,10 @@ def fit_text(text: str, width: int, scale: float, thickness: int) -> str:
     return text[:lo] + "..."
 
 
-def bar_rects(width: int, height: int) -> dict[str, tuple[int, int, int, int]]:
+def bar_rects(size: ImageSize) -> dict[str, tuple[int, int, int, int]]:
     """(x0, y0, x1, y1) of each coverage bar in the output of :func:`draw_live_overlay` for a
     frame of ``width`` x ``height`` (the full bar; the fill starts at x0)."""
+    width, height = size
     u = unit_scale(height)
     pw = panel_width(height)
     margin = round(12 * u)
@@ -173,10 +175,11 @@ def _draw_detection(vis: np.ndarray, det: Detection | None, verdict: str | None,
           font_thick, background=(0, 0, 0))
 
 
-def state_origin(width: int, height: int) -> tuple[int, int]:
+def state_origin(size: ImageSize) -> tuple[int, int]:
     """(x, y) of the panel's state lines (the view count, then READY or what is missing) below the
     coverage bars, in the output of :func:`draw_live_overlay` for a ``width`` x ``height`` frame."""
-    return bar_rects(width, height)["x"][0], round((48 + 58 * len(AXES) + 10) * unit_scale(height))
+    height = size.height
+    return bar_rects(size)["x"][0], round((48 + 58 * len(AXES) + 10) * unit_scale(height))
 
 
 def _draw_panel(out: np.ndarray, w: int, coverage: Mapping[str, float], views: int, min_views: int, ready: bool,
@@ -185,7 +188,7 @@ def _draw_panel(out: np.ndarray, w: int, coverage: Mapping[str, float], views: i
     h = out.shape[0]
     thick, font_thick = max(1, round(u)), max(1, round(1.6 * u))
     small = 0.5 * u
-    for axis, (x0, y0, x1, y1) in bar_rects(w, h).items():
+    for axis, (x0, y0, x1, y1) in bar_rects(ImageSize(w, h)).items():
         p = float(np.clip(coverage.get(axis, 0.0), 0.0, 1.0))
         draw_text(out, f"{LABELS[axis]} {int(100 * p)}%", (x0, y0 - round(6 * u)), small, TEXT_BGR, font_thick)
         cv2.rectangle(out, (x0, y0), (x1 - 1, y1 - 1), BAR_EMPTY_BGR, -1)
@@ -195,7 +198,7 @@ def _draw_panel(out: np.ndarray, w: int, coverage: Mapping[str, float], views: i
         half = x0 + round(READY_COVERAGE * (x1 - x0))
         cv2.rectangle(out, (half - thick // 2, y0 - max(2, round(4 * u))), (half + (thick - 1) // 2, y0 - 1),
                       TEXT_BGR, -1)
-    x0, y = state_origin(w, h)
+    x0, y = state_origin(ImageSize(w, h))
     draw_text(out, f"views {views}/{min_views}", (x0, y), 0.6 * u, TEXT_BGR, font_thick)
     y += round(34 * u)
     if ready:

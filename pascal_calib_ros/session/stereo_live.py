@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..detect import Detection, feature_points
+from ..detect import Detection, DetectionRefusal, feature_points
 from ..geometry import view_hulls
 from .answer import Answer
 from .arm_session import MOVING, StillnessGate
@@ -101,7 +101,10 @@ class StereoCollector:
         shot = dets[0].name or dets[1].name
         for c, (det, p) in enumerate(zip(dets, params, strict=True)):
             if p is None:  # kept as a rejected view: the shot list stays aligned, its reason shown
-                kept.append(Detection(det.width, det.height, name=det.name or shot, reason=str(reasons[c])))
+                why_c = reasons[c]  # the detector's kind when it refused the view, else OTHER
+                kind = (DetectionRefusal.SIZE_MISMATCH if why_c is not None and why_c.kind == RejectionKind.IMAGE_SIZE
+                        else det.refusal)
+                kept.append(Detection(det.width, det.height, name=det.name or shot, reason=str(why_c), refusal=kind))
                 continue
             cam = self.cameras[c]
             cam.views.append(det)
@@ -116,6 +119,22 @@ class StereoCollector:
         other = SIDES[1 - c]
         return True, (f"shot {n} stored: {SIDES[c]} only ({other}: {reasons[1 - c]}); it serves the {SIDES[c]} "
                       "camera's intrinsics"), reasons
+
+    def restore(self, dets: tuple[Detection, Detection]) -> list[bool]:
+        """Store a shot of a resumed session as it was stored (already chosen once: whatever it
+        resembles, the store's limit aside); a camera's view that was not used is passed as a
+        rejected detection. Returns which cameras' views are used."""
+        used = []
+        for c, det in enumerate(dets):
+            cam = self.cameras[c]
+            p = view_parameters(det, cam.board_points) if det.ok else None
+            used.append(p is not None)
+            if p is not None:
+                cam.views.append(det)
+                cam.params.append(p)
+                cam.robot_poses.append(None)
+        self.shots.append((dets[0], dets[1]))
+        return used
 
     def clear(self) -> int:
         n = len(self.shots)
@@ -209,6 +228,14 @@ class StereoSession:
             return PairOutcome(stored=stored, why=why, camera_lines=(lines[0], lines[1]), camera_ok=(oks[0], oks[1]),
                                shots=len(col.shots), both=col.both, ready=col.ready,
                                overlay=overlay)
+
+    def restore(self, dets: tuple[Detection, Detection]) -> None:
+        """Store a shot of a resumed session (:meth:`StereoCollector.restore`)."""
+        with self.lock:
+            used = self.collector.restore(dets)
+            for c in (0, 1):
+                if used[c]:
+                    self.footprints[c].extend(view_hulls([feature_points(dets[c])]))
 
     def picture(self, images: tuple[np.ndarray, np.ndarray], dets: tuple[Detection, Detection],
                 outcome: PairOutcome) -> np.ndarray | None:

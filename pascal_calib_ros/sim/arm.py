@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..geometry import Camera, Transform
+from ..geometry import Camera, ImageSize, Transform
 from ..modes import HandEyeMode
 from ..targets import Target
 from .render import Pose, SensorModel, random_poses, render_view
@@ -75,6 +75,11 @@ class ArmSpec:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "mode", HandEyeMode(self.mode))  # text given for the mode becomes the enum
+
+    @property
+    def size(self) -> ImageSize:
+        """The image size (width, height)."""
+        return ImageSize(self.width, self.height)
 
 
 @dataclass

@@ -21,8 +21,9 @@ def errors_against_truth(truth: dict[str, Any], K: np.ndarray, D: np.ndarray, mo
 
 
 def compare(truth_json: Path, calib_yaml: Path) -> dict[str, float]:
-    """Errors of a camera_calibration_parsers YAML against a rendered session's ground truth."""
-    from ..io import read_camera_yaml
+    """Errors of a calibration file (any format :func:`~..io.read_calibration_file` reads) against a
+    rendered session's ground truth."""
+    from ..io import read_calibration_file
 
-    info = read_camera_yaml(calib_yaml)
-    return errors_against_truth(json.loads(truth_json.read_text()), info.K, info.D, info.distortion_model)
+    cam = read_calibration_file(calib_yaml).camera
+    return errors_against_truth(json.loads(truth_json.read_text()), cam.K, cam.D, cam.model)

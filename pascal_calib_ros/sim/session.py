@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..calibrate import target_shape_frame
-from ..geometry import Camera
+from ..geometry import Camera, ImageSize
 from ..targets import Target
 from .render import (
     Pose,
@@ -72,6 +72,11 @@ class SessionSpec:
         dist = [self.k1, -0.5 * self.k1 * abs(self.k1), 0.0008 * sgn, -0.0005 * sgn, 0.0]
         return Camera.from_params(f, f * 1.0025, cx, cy, dist=dist if self.k1 else None,
                                   width=self.width, height=self.height)
+
+    @property
+    def size(self) -> ImageSize:
+        """The image size (width, height)."""
+        return ImageSize(self.width, self.height)
 
 
 def session_views(target: Target, spec: SessionSpec) -> list[tuple[str, Pose | None, SensorModel]]:

@@ -11,8 +11,9 @@ from .model_bias_study import model_bias_study
 from .stereo_study import stereo_study
 from .study import run_study
 from .trust_study import trust
+from .undesigned_views import undesigned_views
 from .verify_study import StudySpec, verify_study
 
 __all__ = ["StudySpec", "bench", "boards_study", "experiments", "handeye_study", "model_bias_study", "run_bench",
            "run_experiment", "run_guided_study", "run_handeye_study", "run_study", "stereo_study", "study", "trust",
-           "trust_study", "verify_study"]
+           "trust_study", "undesigned_views", "verify_study"]

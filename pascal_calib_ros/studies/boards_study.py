@@ -26,7 +26,7 @@ import numpy as np
 
 from ..calibrate import CalibrationError, CalibrationOptions, calibrate
 from ..detect import detect_target
-from ..geometry import Camera, calibration_errors, observed_field_mask
+from ..geometry import Camera, ImageSize, calibration_errors, observed_field_mask
 from ..sim import SessionSpec, render_view, session_views
 from ..target_boards import AprilGrid, CharucoBoard
 from ..targets import Target, resolve_target
@@ -130,7 +130,7 @@ def opencv_fisheye_aprilgrid(grid: AprilGrid, imgs: list[np.ndarray], cam: Camer
                 return {**row, "views": 0, "error": str(e).strip().splitlines()[-1]}
             views.pop(int(m.group(1)))
             continue
-        mask = observed_field_mask([p for _, p in views], w, h)
+        mask = observed_field_mask([p for _, p in views], ImageSize(w, h))
         err = calibration_errors(cam, np.asarray(K), np.asarray(D).ravel()[:4], "equidistant", mask=mask)
         return {**row, "views": f"{len(views)}/{len(imgs)}", "rms": float(rms),
                 **{k: err[k] for k in ("fx_err_pct", "fy_err_pct", "pp_err_px", "model_err_px")}}

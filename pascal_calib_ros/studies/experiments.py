@@ -33,6 +33,7 @@ from ..geometry import (
     ConicFitError,
     DegenerateViewsError,
     Ellipse,
+    ImageSize,
     centre_image_from_ring,
     circular_point_pt2,
     circular_points_from_ring,
@@ -163,7 +164,7 @@ def solve_view(view: SimView, method: str, layout: str = "average", source: str 
 
 def _k_closed_form(views: list[SimView], method: str, layout: str = "average", source: str = "fitted") -> np.ndarray:
     pts = [solve_view(v, method, layout, source) for v in views]
-    return iac_from_circular_points(pts, W, H, zero_skew=False).K
+    return iac_from_circular_points(pts, ImageSize(W, H), zero_skew=False).K
 
 
 def _reprojection_rms(K: np.ndarray, Hs: list[np.ndarray], views: list[SimView]) -> float:
@@ -183,7 +184,7 @@ def _k_zhang(views: list[SimView]) -> np.ndarray:
     maximum-likelihood refinement; the refinement is kept only if it lowers the reprojection
     error (OpenCV works in float32, which limits it to ~1e-5 px on noise-free data)."""
     Hs = [fit_homography(GRID, v.grid) for v in views]
-    K_cf = iac_from_circular_points([Hm[:, 0] + 1j * Hm[:, 1] for Hm in Hs], W, H, zero_skew=False).K
+    K_cf = iac_from_circular_points([Hm[:, 0] + 1j * Hm[:, 1] for Hm in Hs], ImageSize(W, H), zero_skew=False).K
     obj = np.c_[GRID, np.zeros(len(GRID))].astype(np.float32)
     img = [v.grid.astype(np.float32).reshape(-1, 1, 2) for v in views]
     flags = (cv2.CALIB_FIX_K1 | cv2.CALIB_FIX_K2 | cv2.CALIB_FIX_K3 | cv2.CALIB_ZERO_TANGENT_DIST
@@ -368,7 +369,7 @@ def run_literal(trials: int, seed: int) -> list[dict[str, Any]]:
                                    else pt1_literal(five[:4], start))
                     key = (method, start_kind)
                     try:
-                        Ks.setdefault(key, []).append(iac_from_circular_points(pts, W, H).K)
+                        Ks.setdefault(key, []).append(iac_from_circular_points(pts, ImageSize(W, H)).K)
                     except (DegenerateViewsError, np.linalg.LinAlgError):
                         Ks.setdefault(key, [])
         rows += [_row(m, lay, float(sigma), 3, K, trials) for (m, lay), K in Ks.items()]

@@ -295,8 +295,8 @@ def _guided_next(h: HandEyeResult | None, tools: list[Transform], target: Target
         return None
     used = [i for i, v in enumerate(h.per_view) if v.used]
     ref = h.calibration.refinement
-    noise = ViewPredictor(Linearisation.of_refinement(ref), spec.width, spec.height).noise
-    model = arm_model(h, [tools[i] for i in used], target, noise, spec.width, spec.height, bias=guide.bias,
+    noise = ViewPredictor(Linearisation.of_refinement(ref), spec.size).noise
+    model = arm_model(h, [tools[i] for i in used], target, noise, spec.size, bias=guide.bias,
                       keep_kappa=guide.keep_kappa)
     s = suggest_arm_views(model, target, TrustRegion(tuple(tools)), n=1 + 3 * len(refused), goals=GUIDED_GOALS,
                           ranking=guide.ranking)

@@ -150,7 +150,7 @@ class Guided:
                 return RandomPoses(self.spec).next(state)
             self.boot = boot.index(order[0]) + 1
             return self._ask(state, order[0])
-        s = suggest_views(cal.refinement, state.target, cal.width, cal.height, n=4, avoid=self.failed)
+        s = suggest_views(cal.refinement, state.target, cal.size, n=4, avoid=self.failed)
         state.sigma_px = s.sigma_px
         if not s.suggestions:  # no feasible candidate: what a person would do, a view of their own
             self.fallbacks += 1
@@ -161,7 +161,7 @@ class Guided:
         """``ps`` without those in the neighbourhood of a refused placement."""
         if not ps or not self.failed:
             return ps
-        keep = distinct_from_all(ps, self.failed, cam.width, cam.height)
+        keep = distinct_from_all(ps, self.failed, cam.size)
         return [p for p, k in zip(ps, keep, strict=True) if k]
 
     def _ask(self, state: SessionState, p: Placement) -> Pose:
@@ -263,7 +263,7 @@ class Coverage:
         self.n += 1
         pts = [np.concatenate([e.points for e in d.edges] + ([d.corners] if d.corners is not None else []))
                for d in state.dets if d.ok]
-        mask = observed_field_mask(pts, cam.width, cam.height) if pts else np.zeros((cam.height, cam.width), bool)
+        mask = observed_field_mask(pts, cam.size) if pts else np.zeros((cam.height, cam.width), bool)
         cols, rows = 5, 4
         best: tuple[float, float, float, float] | None = None
         for i in range(rows):

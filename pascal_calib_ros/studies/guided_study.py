@@ -125,7 +125,7 @@ def run_session(case: Case, strategy: str, seed: int, n_max: int, error: PersonE
             rms, worst, raw_rms, raw_worst = true_errors(cam, res.K, res.D, res.model)
             sigma = float("nan")
             if res.refinement is not None and res.refinement.covariance is not None:
-                sigma = ViewPredictor(Linearisation.of_refinement(res.refinement), cam.width, cam.height).sigma_now()
+                sigma = ViewPredictor(Linearisation.of_refinement(res.refinement), cam.size).sigma_now()
             curve[n] = {"rms_px": rms, "worst_px": worst, "raw_rms_px": raw_rms, "raw_worst_px": raw_worst,
                         "sigma_px": sigma, "used": res.n_used,
                         "fx_err_pct": 100 * (res.K[0, 0] / cam.K[0, 0] - 1),
@@ -269,7 +269,7 @@ def suggestion_timing(quick: bool, n_views: int = 30, repeats: int = 3) -> str:
         with threadpool_limits(1, "blas"):
             for _ in range(repeats):
                 t0, c0 = time.perf_counter(), time.process_time()
-                suggest_views(res.refinement, target, cam.width, cam.height, n=5)
+                suggest_views(res.refinement, target, cam.size, n=5)
                 wall.append(time.perf_counter() - t0)
                 cpu.append(time.process_time() - c0)
         lines.append(f"| {name} | {res.n_used} | {np.median(wall):.2f} | {np.median(cpu):.2f} | "

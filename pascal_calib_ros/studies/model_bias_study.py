@@ -67,9 +67,9 @@ def run_case(case: BiasCase) -> dict[str, Any]:
     except CalibrationError as e:
         return {**row, "error": str(e)[:120]}
     s = residual_samples_of(res)
-    reg = regional(s, res.width, res.height)
+    reg = regional(s, res.size)
     rad = radial(s, (res.K[0, 2], res.K[1, 2]))
-    mb = model_bias(reg, rad, res.width, res.height, res.model)
+    mb = model_bias(reg, rad, res.size, res.model)
     tested = np.isfinite(mb.radial_px)
     return {**row, "views": res.n_used, "rms_px": round(res.rms, 4), "detected": mb.detected,
             "max_regional_px": round(mb.max_regional_px, 4),

@@ -304,7 +304,7 @@ def _ours(case: LensCase, cam: Camera, imgs: list[np.ndarray], target_name: str,
         res = calibrate(dets, target, CalibrationOptions(distortion=distortion))
     except CalibrationError as e:
         return _lens_row(case, target_name, method, views=f"0/{len(imgs)}", error=str(e)), None
-    mask = observed_field_mask(res.edge_points, cam.width, cam.height)
+    mask = observed_field_mask(res.edge_points, cam.size)
     angles = [float(_ray_angles_deg(cam, p).max()) for p in res.edge_points]
     rejected = sorted({v.reason for v in res.views if not v.used and v.reason})
     row = _lens_row(case, target_name, method, views=f"{res.n_used}/{len(imgs)}",
@@ -428,7 +428,7 @@ def _opencv_rows(case: LensCase, cam: Camera, poses: list[Any], sensors: list[An
                                   error=str(e).strip().splitlines()[-1]))
             continue
         pts = [ips[j] for j in used]
-        mask = observed_field_mask(pts, cam.width, cam.height)
+        mask = observed_field_mask(pts, cam.size)
         angles = [_true_ray_angle(cam, poses[ks[j]], obj) for j in used]
         row = _lens_row(case, "checkerboard_a4", method, views=f"{len(used)}/{n}",
                         **_masked_errors(cam, K, D, model, mask), rms=float(rms), max_ray_deg=max(angles),

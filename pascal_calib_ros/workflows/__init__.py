@@ -16,6 +16,7 @@ from .outputs import (
     calibration_file_path,
     camera_info_data,
     output_folder,
+    write_calibration,
     write_result_files,
 )
 from .result_set import ResultSet, ResultStore, copy_atomic
@@ -34,6 +35,8 @@ from .stereo_session import (
     StereoSessionOptions,
     answer_line,
     calibrate_stereo_session,
+    recorded_stereo_shots,
+    run_recorded_stereo,
     stereo_output_dir,
     write_session_report,
 )
@@ -42,11 +45,12 @@ from .verify import VerifyRequest, hand_eye_reference_of_result, reference_of_fi
 
 __all__ = ["FORMATS", "HAND_EYE_FILE", "ExportRequest", "HandEyeFrames", "HandEyeOutcome", "IntrinsicOutcome",
            "PairingError", "ReportRequest", "ResultFileError", "ResultPaths", "ResultSet", "ResultStore",
-           "ResultWriter", "StaticTransform", "StereoOptions", "StereoOutcome", "StereoSessionOptions", "SuggestError",
-           "SuggestOptions", "VerifyRequest", "WarmArmSuggestions", "WrittenFiles", "answer_line",
+           "ResultWriter", "StaticTransform", "StereoOptions", "StereoOutcome", "StereoSessionOptions",
+           "SuggestError", "SuggestOptions", "VerifyRequest", "WarmArmSuggestions", "WrittenFiles", "answer_line",
            "calibrate_stereo_session", "calibration_file_path", "camera_info_data", "copy_atomic", "detect_files",
            "detect_images", "detection_params", "expand_glob", "export_calibration", "hand_eye_doubts",
            "hand_eye_frames", "hand_eye_reference_of_result", "intrinsic_covariance", "output_folder", "pair_files",
-           "read_result_transforms", "record_of_result", "reference_of_file", "run_hand_eye", "run_intrinsic",
-           "run_rig", "run_stereo", "run_verify", "stereo_output_dir", "suggest_for_arm", "suggest_for_person",
-           "summary", "verify_detections", "write_reports", "write_result_files", "write_session_report"]
+           "read_result_transforms", "record_of_result", "recorded_stereo_shots", "reference_of_file", "run_hand_eye",
+           "run_intrinsic", "run_recorded_stereo", "run_rig", "run_stereo", "run_verify", "stereo_output_dir",
+           "suggest_for_arm", "suggest_for_person", "summary", "verify_detections", "write_calibration",
+           "write_reports", "write_result_files", "write_session_report"]

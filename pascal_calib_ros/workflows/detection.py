@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..detect import Detection, DetectionParams, detect_target
+from ..detect import Detection, DetectionParams, DetectionRefusal, detect_target
 from ..geometry import lens_model
 from ..io import ImageReadError, read_grey
 from ..targets import Target
@@ -47,10 +47,10 @@ def detect_images(items: Iterable[tuple[str, np.ndarray | str]], n: int, target:
     for k, (name, img) in enumerate(items, 1):
         _progress(progress, k, n, name)
         if isinstance(img, str):
-            dets.append(Detection(0, 0, name=name, reason=img))
+            dets.append(Detection(0, 0, name=name, reason=img, refusal=DetectionRefusal.UNREADABLE_IMAGE))
             continue
         if size is not None and (img.shape[1], img.shape[0]) != size:
-            dets.append(Detection(img.shape[1], img.shape[0], name=name,
+            dets.append(Detection(img.shape[1], img.shape[0], name=name, refusal=DetectionRefusal.SIZE_MISMATCH,
                                   reason=f"image size {img.shape[1]}x{img.shape[0]} differs from {size[0]}x{size[1]}"))
             continue
         size = (img.shape[1], img.shape[0])

@@ -149,7 +149,7 @@ def _write(req: ExportRequest, cf: CalibrationFile, cam: Camera, note: str, mask
         if mask is not None and mask.any():
             model = replace(model, valid_intrinsics_region=region_contour(mask))
         return write_mrcal_model(req.output, model, note)
-    rec = cf.record if cf.record is not None else CalibrationRecord(cam, cf.camera_name or "camera")
+    rec = cf.record
     if refitted:  # the covariance was of the source's parameters, not the refit's
         rec = CalibrationRecord(cam, rec.camera_name, distortion_choice=refitted if refitted in DISTORTION_CHOICES
                                 else "", view_hulls=hulls or rec.view_hulls, note=note)

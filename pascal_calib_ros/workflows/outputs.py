@@ -18,27 +18,27 @@ import numpy as np
 from ..analysis import Assessment
 from ..calibrate import CalibrationResult
 from ..detect import Detection
-from ..geometry import rectified_projection
 from ..io import (
+    CalibrationRecord,
     CameraInfoData,
     HandEyeRecord,
+    camera_info_of,
     sidecar_path,
     write_calibration_json,
     write_camera_yaml,
     write_hand_eye_yaml,
 )
 from ..report import write_report
-from .calibration_record import record_of_calibration
+from .calibration_record import record_of_calibration, record_of_result
 
 HAND_EYE_FILE = "hand_eye.yaml"
 ImageSource = Callable[[str], "np.ndarray | None"]  # a view's name -> its grey image (None: not at hand)
 
 
 def camera_info_data(res: CalibrationResult, camera_name: str) -> CameraInfoData:
-    """The CameraInfo of a calibration: K, D, its ROS distortion model, R = I and P the rectified
-    projection (:func:`~..geometry.camera.rectified_projection`: [K 0] for pinhole models)."""
-    return CameraInfoData(res.width, res.height, camera_name, res.K, res.D, res.model,
-                          P=rectified_projection(res.camera()))
+    """The CameraInfo of a calibration: its record's (:func:`~..io.camera_yaml.camera_info_of`: K, D,
+    its ROS distortion model, R = I and P the rectified projection)."""
+    return camera_info_of(record_of_result(res, camera_name))
 
 
 def output_folder(camera_name: str, output_dir: str = "") -> Path:
@@ -57,15 +57,12 @@ def calibration_file_path(camera_name: str, output_dir: str = "", calibration_fi
     return output_folder(camera_name, output_dir) / f"{camera_name}.yaml"
 
 
-def write_camera_file(res: CalibrationResult, path: str | Path, camera_name: str) -> Path:
-    """The camera_calibration_parsers YAML of a calibration."""
-    return write_camera_yaml(path, camera_info_data(res, camera_name))
-
-
-def write_calibration_record(a: Assessment, camera_yaml: str | Path, camera_name: str) -> Path:
-    """``CAM.calibration.json`` beside the camera YAML (:mod:`..io.calibration_json`): the covariance
-    ``pascal-calib verify`` tests against and the observed field ``export --region`` refits over."""
-    return write_calibration_json(sidecar_path(camera_yaml), record_of_calibration(a, camera_name))
+def write_calibration(rec: CalibrationRecord, camera_yaml: str | Path) -> list[Path]:
+    """A calibrated camera's two files, both from the one record: the camera_calibration_parsers
+    YAML and ``CAM.calibration.json`` beside it (:mod:`..io.calibration_json`: the covariance
+    ``pascal-calib verify`` tests against and the observed field ``export --region`` refits over)."""
+    yaml_path = write_camera_yaml(camera_yaml, camera_info_of(rec))
+    return [yaml_path, write_calibration_json(sidecar_path(yaml_path), rec)]
 
 
 @dataclass(frozen=True)
@@ -107,8 +104,7 @@ def write_result_files(paths: ResultPaths, a: Assessment, camera_name: str, hand
     ``hand_eye`` is given (``paths.hand_eye_yaml`` must be set), the report when ``paths.report_dir``
     and ``report`` are (``hand_eye_result`` adds its page). A report that fails is a warning: it
     must never cost the calibration."""
-    out = WrittenFiles([write_camera_file(a.result, paths.camera_yaml, camera_name)])
-    out.paths.append(write_calibration_record(a, out.paths[0], camera_name))
+    out = WrittenFiles(write_calibration(record_of_calibration(a, camera_name), paths.camera_yaml))
     if hand_eye is not None:
         if paths.hand_eye_yaml is None:
             raise ValueError("a hand-eye result needs paths.hand_eye_yaml")

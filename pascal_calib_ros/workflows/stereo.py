@@ -25,14 +25,16 @@ import numpy as np
 
 from ..analysis import assess_rig, epipolar_rms
 from ..calibrate import RigOptions, RigResult, calibrate_rig
-from ..detect import Detection, DetectionParams, detect_target
+from ..detect import Detection, DetectionParams, DetectionRefusal, detect_target
 from ..errors import PascalCalibError
-from ..geometry import StereoRectification, rectified_projection, rectify_pair
+from ..geometry import StereoRectification, rectify_pair
 from ..io import (
+    CalibrationRecord,
     CameraInfoData,
     ImageReadError,
     RigCameraData,
     StereoData,
+    camera_info_of,
     pair_camera_infos,
     read_grey,
     sidecar_path,
@@ -122,16 +124,18 @@ def detect_shots(pairing: Pairing, target: Target, params: DetectionParams,
             if progress is not None:
                 progress(k, total, shot if p is None else p.name)
             if p is None:
-                dets.append(Detection(0, 0, name=shot, reason="no image of this shot"))
+                dets.append(Detection(0, 0, name=shot, reason="no image of this shot",
+                                      refusal=DetectionRefusal.MISSING_IMAGE))
                 continue
             try:
                 img = read_grey(p)
             except ImageReadError as e:
-                dets.append(Detection(0, 0, name=shot, reason=str(e)))
+                dets.append(Detection(0, 0, name=shot, reason=str(e), refusal=DetectionRefusal.UNREADABLE_IMAGE))
                 continue
             if size is not None and (img.shape[1], img.shape[0]) != size:
                 why = f"image size {img.shape[1]}x{img.shape[0]} differs from {size[0]}x{size[1]}"
-                dets.append(Detection(img.shape[1], img.shape[0], name=shot, reason=why))
+                dets.append(Detection(img.shape[1], img.shape[0], name=shot, reason=why,
+                                      refusal=DetectionRefusal.SIZE_MISMATCH))
                 continue
             size = (img.shape[1], img.shape[0])
             dets.append(detect_target(img, target, params, name=shot))
@@ -234,39 +238,54 @@ def stereo_outcome(rig: RigResult, dets: list[list[Detection]], target: Target, 
     return outcome
 
 
-def write_rig_records(rig: RigResult, out: Path, camera_names: list[str]) -> list[Path]:
-    """``NAME.calibration.json`` beside each camera's ``NAME.yaml`` in ``out`` (NAME the rig's camera
-    name): what ``pascal-calib verify`` and ``export`` read, with each camera's intrinsics'
+def rig_records(rig: RigResult, camera_names: list[str]) -> list[CalibrationRecord]:
+    """Each camera of a jointly calibrated rig as a calibrated camera, with its intrinsics'
     covariance from the joint fit (:func:`~.calibration_record.record_of_rig_camera`)."""
     assessed = assess_rig(rig)
-    return [write_calibration_json(sidecar_path(out / f"{n}.yaml"), record_of_rig_camera(rig, c, assessed[c], cn))
-            for c, (n, cn) in enumerate(zip(rig.names, camera_names, strict=True))]
+    return [record_of_rig_camera(rig, c, assessed[c], cn) for c, cn in enumerate(camera_names)]
+
+
+def write_rig_records(rig: RigResult, out: Path, camera_names: list[str]) -> list[Path]:
+    """``NAME.calibration.json`` beside each camera's ``NAME.yaml`` in ``out`` (NAME the rig's camera
+    name): what ``pascal-calib verify`` and ``export`` read (:func:`rig_records`)."""
+    return [write_calibration_json(sidecar_path(out / f"{n}.yaml"), rec)
+            for n, rec in zip(rig.names, rig_records(rig, camera_names), strict=True)]
 
 
 @dataclass
 class RigOutcome:
+    """A rig's joint calibration: each camera as a calibrated camera (its record), the frames its
+    transforms are published in, the lines a person reads, the files written."""
+
     rig: RigResult
-    files: list[Path]
+    records: list[CalibrationRecord]
+    frames: list[str]
     lines: list[str]
+    files: list[Path] = field(default_factory=list)
+
+    def camera_infos(self) -> list[CameraInfoData]:
+        """Each camera's CameraInfo (monocular: R = I, P as ``pascal-calib calibrate`` writes it)."""
+        return [camera_info_of(rec) for rec in self.records]
+
+    def write(self, out_dir: str | Path) -> list[Path]:
+        """``NAME.yaml`` and ``NAME.calibration.json`` per camera (both from its record) and
+        ``rig.yaml`` (:mod:`..io.stereo_yaml`) in ``out_dir``."""
+        out, rig, names = Path(out_dir), self.rig, self.rig.names
+        files = [write_camera_yaml(out / f"{n}.yaml", info) for n, info in zip(names, self.camera_infos(), strict=True)]
+        cams = [RigCameraData(n, self.frames[c], f"{n}.yaml", rig.pose_in_reference(c), *rig.pose_sigma[c])
+                for c, n in enumerate(names)]
+        files.append(write_rig_yaml(out / "rig.yaml", cams, int(np.sum(rig.used.any(0)))))
+        return files + [write_calibration_json(sidecar_path(out / f"{n}.yaml"), rec)
+                        for n, rec in zip(names, self.records, strict=True)]
 
 
 def rig_from_detections(dets: list[list[Detection]], target: Target, names: list[str], out_dir: str | Path,
                         options: RigOptions = RigOptions(), frames: list[str] | None = None  # noqa: B008 (frozen)
                         ) -> RigOutcome:
-    """Detections of N cameras (``dets[c][s]``) -> the joint calibration, ``NAME.yaml`` per camera
-    (monocular: R = I, P as ``pascal-calib calibrate`` writes it) and ``rig.yaml`` in ``out_dir``."""
+    """Detections of N cameras (``dets[c][s]``) -> the joint calibration, written to ``out_dir``
+    (:meth:`RigOutcome.write`)."""
     rig = calibrate_rig(dets, target, names, options, [d.name for d in dets[0]])
     frames = frames or [f"{n}_optical_frame" for n in names]
-    out = Path(out_dir)
-    files, cams = [], []
-    for c, n in enumerate(names):
-        cam = rig.cameras[c].camera()
-        info = CameraInfoData(cam.width, cam.height, n, cam.K, np.asarray(cam.D, float), cam.model,
-                              P=rectified_projection(cam))
-        files.append(write_camera_yaml(out / f"{n}.yaml", info))
-        cams.append(RigCameraData(n, frames[c], f"{n}.yaml", rig.pose_in_reference(c), *rig.pose_sigma[c]))
-    files.append(write_rig_yaml(out / "rig.yaml", cams, int(np.sum(rig.used.any(0)))))
-    files += write_rig_records(rig, out, names)
     lines = ["shots:", *_shot_lines(rig), *rig.summary_lines()]
     for c in range(1, len(names)):
         sr, st = rig.pose_sigma[c]
@@ -274,8 +293,10 @@ def rig_from_detections(dets: list[list[Detection]], target: Target, names: list
         lines.append(f"{names[c]} in {names[0]}'s frame: t = [{', '.join(f'{v:.6f}' for v in t)}] m "
                      f"(+- [{', '.join(f'{v:.4f}' for v in st)}] mm), +- [{', '.join(f'{v:.5f}' for v in sr)}] deg")
         lines.append("  " + static_transform_command(rig.pose_in_reference(c), frames[0], frames[c]))
-    lines.append("wrote " + ", ".join(str(f) for f in files))
-    return RigOutcome(rig, files, lines)
+    outcome = RigOutcome(rig, rig_records(rig, names), frames, lines)
+    outcome.files = outcome.write(out_dir)
+    outcome.lines.append("wrote " + ", ".join(str(f) for f in outcome.files))
+    return outcome
 
 
 def progress_printer(enabled: bool) -> Callable[[int, int, str], None] | None:

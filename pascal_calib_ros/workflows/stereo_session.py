@@ -7,6 +7,10 @@ calibration must pass (:func:`stereo_doubts`); only then are the files written
 camera's calibration record (``left.calibration.json``, ``right.calibration.json``: the covariance
 ``pascal-calib verify`` and ``export`` need), as the CLI writes them, and, when the frames were
 kept, each camera's report and the pair's page (:func:`write_session_report`).
+
+A recorded stereo session (:mod:`..io.session_folder`, a shot per view) is detected again as the
+node stored it (:func:`recorded_stereo_shots`: what ``resume:=true`` stores before the first new
+pair) and calibrated offline by :func:`run_recorded_stereo` (``pascal-calib stereo SESSION``).
 """
 
 from __future__ import annotations
@@ -18,10 +22,13 @@ from pathlib import Path
 import numpy as np
 
 from ..calibrate import CalibrationOptions, RigOptions
-from ..detect import Detection
+from ..detect import Detection, DetectionParams, detect_target
 from ..errors import PascalCalibError
+from ..io import SessionFolder
 from ..targets import Target
 from .stereo import Pairing, StereoOptions, StereoOutcome, stereo_from_detections, write_reports
+
+CAMERAS = ("left", "right")  # the cameras of a recorded stereo shot, in order
 
 # a published rig transform must be known at least this well (the hand-eye node's limits)
 MAX_SIGMA_DEG = 0.5
@@ -130,3 +137,41 @@ def answer_line(outcome: StereoOutcome, files: list[Path]) -> str:
         parts.append(f"yaml={files[0]}, {files[1].name}, {files[2].name}")
     parts += [f"warning: {w}" for w in rig.warnings]
     return "; ".join(parts)
+
+
+def recorded_stereo_shots(folder: SessionFolder, target: Target, params: DetectionParams
+                          ) -> list[tuple[Detection, Detection]]:
+    """The shots of a recorded stereo session as the node stored them: each camera's frame detected
+    again (named by its shot), a view the node did not use kept as a rejected detection with the
+    recorded reason. Raises :class:`StereoSessionError` for a folder that is not a stereo session
+    and :class:`~..io.session_folder.SessionFolderError` for a frame that cannot be read."""
+    if folder.manifest.cameras != CAMERAS:
+        raise StereoSessionError(f"{folder.path} is not a stereo session (its cameras: "
+                                 f"{', '.join(folder.manifest.cameras) or 'one'}; left, right expected)")
+    shots = []
+    for view in list(folder.views):
+        dets = []
+        for c in (0, 1):
+            img = folder.image(view, c)
+            why = view.not_used[c] if view.not_used else ""
+            dets.append(Detection(img.shape[1], img.shape[0], name=view.name, reason=why) if why
+                        else detect_target(img, target, params, name=view.name))
+        shots.append((dets[0], dets[1]))
+    return shots
+
+
+def recorded_pairing(folder: SessionFolder) -> Pairing:
+    """Each camera's frame of each recorded shot (for the reports)."""
+    views = list(folder.views)
+    return Pairing([v.name for v in views], [[folder.path / v.images[c] for v in views] for c in (0, 1)],
+                   f"as recorded in {folder.path}")
+
+
+def run_recorded_stereo(folder: SessionFolder, target: Target, options: StereoOptions, params: DetectionParams,
+                        out_dir: str | Path) -> tuple[Pairing, list[list[Detection]], StereoOutcome]:
+    """A recorded stereo session calibrated offline (``pascal-calib stereo SESSION``): the shots the
+    node stored (:func:`recorded_stereo_shots`) -> :func:`~.stereo.stereo_from_detections`, the
+    files in ``out_dir``; the same numbers as the node's ``~/calibrate`` on those shots."""
+    shots = recorded_stereo_shots(folder, target, params)
+    dets = [[s[0] for s in shots], [s[1] for s in shots]]
+    return recorded_pairing(folder), dets, stereo_from_detections(dets, target, options, out_dir)

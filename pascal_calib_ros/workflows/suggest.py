@@ -29,7 +29,7 @@ from ..calibrate import DISTORTION_MODELS, MIN_VIEWS, CalibrationError, Calibrat
 from ..calibrate.handeye import HandEyeOptions, HandEyeStart, calibrate_hand_eye_warm
 from ..detect import Detection
 from ..errors import PascalCalibError
-from ..geometry import Placement, Transform
+from ..geometry import ImageSize, Placement, Transform
 from ..io import ArmProgress, Suggestion, Suggestions, ToolSuggestion
 from ..modes import HandEyeMode, parse_mode
 from ..targets import Target
@@ -92,7 +92,7 @@ def suggest_for_person(dets: list[Detection], target: Target, opt: SuggestOption
     if res.refinement is None or res.refinement.covariance is None:
         raise SuggestError("the calibration has no covariance to predict from (refinement failed)")
     with threadpool_limits(1, "blas"):  # small dense products: one thread is faster on a shared machine
-        s = suggest_views(res.refinement, target, res.width, res.height, opt.n, avoid=avoid)
+        s = suggest_views(res.refinement, target, res.size, opt.n, avoid=avoid)
     return Suggestions(bool(s.sigma_px <= opt.goal_sigma_px), s.sigma_px, opt.goal_sigma_px, s.distance, res.n_used,
                        tuple(_suggestion(r) for r in s.suggestions), avoided=tuple(avoid))
 
@@ -130,15 +130,15 @@ def arm_suggestions(dets: list[Detection], robot: list[Transform | None], target
     assert all(p is not None for p in poses)
     w, hgt = h.calibration.width, h.calibration.height
     with threadpool_limits(1, "blas"):
-        intrinsic = ViewPredictor(Linearisation.of_refinement(ref), w, hgt)
-        model = arm_model(h, poses, target, intrinsic.noise, w, hgt)  # type: ignore[arg-type]
+        intrinsic = ViewPredictor(Linearisation.of_refinement(ref), ImageSize(w, hgt))
+        model = arm_model(h, poses, target, intrinsic.noise, ImageSize(w, hgt))  # type: ignore[arg-type]
         trust = TrustRegion(tuple(poses), opt.reach, opt.max_turn)  # type: ignore[arg-type]
         s = suggest_arm_views(model, target, trust, opt.n + 3 * len(avoid),
                               ArmGoals(opt.goal_sigma_px, opt.goal_deg, opt.goal_mm))
         sigma = intrinsic.sigma_now()
     kept = s.suggestions
     if avoid and kept:
-        new = distinct_from_all([a.view.placement for a in kept], avoid, w, hgt, DISTINCT_ROLL_DEG)
+        new = distinct_from_all([a.view.placement for a in kept], avoid, ImageSize(w, hgt), DISTINCT_ROLL_DEG)
         kept = [a for a, k in zip(kept, new, strict=True) if k]
     kept = kept[:opt.n]
     done = sigma <= opt.goal_sigma_px and s.rotation_deg <= opt.goal_deg and s.translation_mm <= opt.goal_mm

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -58,9 +58,9 @@ def reference_of_file(cf: CalibrationFile) -> CalibrationRecord:
         raise VerifyInputError(f"{cf.path}: verify tests {', '.join(MODELS)} cameras; this one is an {cf.camera.model} "
                                "model (compare it with pascal-calib diff)")
     rec = cf.record
-    if rec is None or rec.covariance is None:
-        return CalibrationRecord(cf.camera, cf.camera_name, rec.distortion_choice if rec else "")
-    return replace(rec, camera=cf.camera)
+    if rec.covariance is None:  # what a later check needs is only the camera and its choice
+        return CalibrationRecord(rec.camera, rec.camera_name, rec.distortion_choice)
+    return rec
 
 
 def hand_eye_reference(path: Path) -> HandEyeReference:

@@ -145,3 +145,88 @@ def test_a_grid_element_near_the_image_border_is_measured_with_a_shorter_window(
     assert fit is not None
     e = Ellipse.from_conic(fit.conic)
     assert abs(e.cx - cx) < 0.03 and abs(e.cy - cy) < 0.03 and abs(e.a - r) < 0.03 and abs(e.b - r) < 0.03
+
+
+def test_a_whole_ring_bent_by_the_lens_is_not_refused_as_cut() -> None:
+    """Issue 36 (study `undesigned_views`, seed 1, view_001): ring_a4 47 px inside the border of
+    the 1280x720 wide-lens image, seen 81 deg from the line of sight, the sheet cut by the border.
+    Its outline and hole are both bent off ellipses by the lens; the sheet's edges, bent alike,
+    looked like a circle's arc leaving the frame, and the view was refused as `cut by border`.
+    The refusal now names the ring's own state."""
+    from pascal_calib_ros.detect import DetectionRefusal
+    from pascal_calib_ros.sim import render_view, session_views
+    from pascal_calib_ros.studies.undesigned_views import undesigned_spec, view_truth
+    from pascal_calib_ros.targets import resolve_target
+    from pascal_calib_ros.workflows import detection_params
+
+    target = resolve_target("ring_a4")
+    spec = undesigned_spec(1, views=2, extras=0)
+    cam = spec.camera()
+    name, pose, sensor = session_views(target, spec)[1]
+    assert name == "view_001" and view_truth(target, cam, pose).whole and view_truth(target, cam, pose).margin > 40
+    det = detect_target(render_view(target, cam, pose, sensor).image, target, detection_params("plumb_bob", 2.2))
+    assert det.refusal == DetectionRefusal.OUTLINE_NOT_ELLIPSE, det.reason
+
+
+def _study_view(seed: int, index: int) -> tuple:
+    """The target, camera, pose and image of view ``index`` of the study `undesigned_views`' seed
+    ``seed`` (1280x720, f 640 px, k1 -0.28, blur 2 px, display gamma 2.2), rendered alone."""
+    from pascal_calib_ros.sim import render_view, session_views
+    from pascal_calib_ros.studies.undesigned_views import undesigned_spec
+    from pascal_calib_ros.targets import resolve_target
+
+    target = resolve_target("ring_a4")
+    spec = undesigned_spec(seed, views=index + 1, extras=0)
+    cam = spec.camera()
+    name, pose, sensor = session_views(target, spec)[index]
+    assert name == f"view_{index:03d}"
+    return target, cam, pose, render_view(target, cam, pose, sensor).image
+
+
+def _errors(target: Target, cam: Camera, pose: Pose, det) -> list[np.ndarray]:  # type: ignore[no-untyped-def]
+    from pascal_calib_ros.studies.undesigned_views import circle_image
+
+    out = []
+    for e in det.edges:
+        truth = circle_image(target, cam, pose, e.circle, 20000)
+        out.append(cKDTree(truth).query(e.points)[0])
+    return out
+
+
+def test_a_ring_the_lens_bends_off_conics_is_measured_along_its_traced_outline() -> None:
+    """Issue 36 (study `undesigned_views`, seed 3, view_000): ring_a4 23 px inside the border of
+    the wide-lens image, seen 47 deg from the line of sight, near a corner: the lens bends its
+    outline and hole off concentric circles' images (refused `not concentric`, 1.1x the limit).
+    Its edges are now refined along the traced contours: every point within 0.3 px of its
+    circle's true image (measured: 0.13 px), 95 % of the profiles kept."""
+    from pascal_calib_ros.studies.undesigned_views import view_truth
+    from pascal_calib_ros.workflows import detection_params
+
+    target, cam, pose, image = _study_view(3, 0)
+    truth = view_truth(target, cam, pose)
+    assert truth.whole and 40 <= truth.tilt <= 60
+    det = detect_target(image, target, detection_params("plumb_bob", 2.2))
+    assert det.ok, det.reason
+    errs = _errors(target, cam, pose, det)
+    assert [e.circle for e in det.edges] == [0, 1]
+    assert max(float(e.max()) for e in errs) < 0.3
+    from pascal_calib_ros.studies.undesigned_views import circle_image
+
+    for e in det.edges:  # one profile per 1.5 px of the outline, 95 % of them kept
+        perimeter = np.sum(np.hypot(*np.diff(circle_image(target, cam, pose, e.circle), axis=0).T))
+        assert len(e.points) > 0.95 * perimeter / 1.5
+
+
+def test_no_edge_point_off_the_traced_edge_is_accepted() -> None:
+    """Issue 36 (seed 1, view_006: 41 deg tilt, 18 px from the border near a corner): the ring is
+    ellipse enough to be measured along its ellipses' normals, but where the lens bends the outer
+    edge most those profiles crossed it obliquely: points 3.9 px off the truth were accepted. An
+    edge point farther than 1 px from the edge refined along the traced contour is now dropped."""
+    from pascal_calib_ros.detect.contour_edges import TRACED_TOLERANCE
+    from pascal_calib_ros.workflows import detection_params
+
+    target, cam, pose, image = _study_view(1, 6)
+    det = detect_target(image, target, detection_params("plumb_bob", 2.2))
+    assert det.ok, det.reason
+    errs = _errors(target, cam, pose, det)
+    assert max(float(e.max()) for e in errs) < TRACED_TOLERANCE

@@ -116,3 +116,37 @@ def test_arbitrary_arrays_through_detection_never_raise(ring_target: Target, boa
             assert not det.ok and det.reason
 
     check()
+
+
+def test_every_refusal_has_its_kind(ring_target: Target) -> None:
+    """Issue 35: the kind beside the words, for what the detector refuses."""
+    from pascal_calib_ros.detect import DetectionRefusal as K
+
+    spec = SessionSpec(width=640, height=480, views=1, cut_views=2, empty_views=1, defocused_views=1, seed=9)
+    _, views = render_session_views(ring_target, spec)
+    kinds = {str(v.meta["name"]): detect_target(v.image, ring_target).refusal for v in views}
+    assert kinds == {"view_000": None, "cut_000": K.CUT_BY_BORDER, "cut_001": K.CUT_BY_BORDER,
+                     "empty_000": K.NO_TARGET, "defocused_000": K.TOO_BLURRED}
+    assert detect_target(np.full((480, 640), 90, np.uint8), ring_target).refusal == K.NO_CONTRAST
+    assert detect_target(np.zeros((8, 8), np.uint8), ring_target).refusal == K.UNREADABLE_IMAGE
+
+
+def test_a_ring_like_shape_whose_outline_is_no_ellipse_is_named(ring_target: Target) -> None:
+    """Issue 36: a dark shape with the ring's hole whose outline is no ellipse (here a square) was
+    dropped silently by the blob search ("no ring found"); the refusal now says what it saw."""
+    import cv2
+
+    from pascal_calib_ros.detect import DetectionRefusal
+
+    img = np.full((480, 640), 230, np.uint8)
+    cv2.rectangle(img, (220, 140), (420, 340), 20, -1)
+    cv2.circle(img, (320, 240), 56, 230, -1)
+    img = cv2.GaussianBlur(img, (0, 0), 1.0)
+    det = detect_target(img, ring_target)
+    assert det.refusal == DetectionRefusal.OUTLINE_NOT_ELLIPSE, det.reason
+    assert det.reason.startswith("ring's outline not an ellipse (") and "x the detector's limit)" in det.reason
+    # a real ring in the same place is measured: the named refusal is not a wider net
+    ring = np.full((480, 640), 230, np.uint8)
+    cv2.circle(ring, (320, 240), 112, 20, -1)
+    cv2.circle(ring, (320, 240), 56, 230, -1)
+    assert detect_target(cv2.GaussianBlur(ring, (0, 0), 1.0), ring_target).ok

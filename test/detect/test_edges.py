@@ -146,3 +146,29 @@ def test_the_two_edges_of_a_thin_band_are_fitted_together() -> None:
         band_mean, band_rms = _inner_edge_error(img, inner, start, hw, np.array([1, 0]))
         assert step_mean < -0.1, (R, step_mean)
         assert abs(band_mean) < 0.06 and band_rms < 0.07, (R, band_mean, band_rms)
+
+
+def test_the_sheet_edge_beside_a_ring_is_not_taken_for_its_edge() -> None:
+    """Issue 36: a dark disc on paper whose sheet ends 5 px beyond its edge on one side (a darker
+    background there, as a close, tilted ring_a4 near the sheet's edge): the profiles there see
+    the sheet's edge within their window, whose blurred step pulls the fitted edge outwards. They
+    are dropped (:func:`..edges._second_edge`): the edge is measured by the rest, on the circle."""
+    import cv2
+
+    h, w, r, cx, cy = 200, 240, 60.0, 110.3, 100.6
+    yy, xx = np.mgrid[0:h, 0:w]
+    sub = np.zeros((h, w))  # coverage of the disc, 8 x 8 samples per pixel
+    paper = np.zeros((h, w))
+    for dy in (np.arange(8) + 0.5) / 8 - 0.5:
+        for dx in (np.arange(8) + 0.5) / 8 - 0.5:
+            sub += np.hypot(xx + dx - cx, yy + dy - cy) < r
+            paper += xx + dx < cx + r + 5.0  # the sheet's edge: a vertical line 5 px right of the disc
+    lin = 0.35 + 0.55 * paper / 64 - 0.8 * sub / 64  # paper 0.9, background 0.35, ink 0.1 (linear light)
+    img = cv2.GaussianBlur((255 * lin).astype(np.float32), (0, 0), 1.5)
+    start = Ellipse(cx + 0.8, cy - 0.5, r + 1.0, r - 0.5, 0.0).to_conic()
+    fit = refine_edge(img, start, spacing=1.0, second_edge=True)
+    d = np.hypot(fit.points[:, 0] - cx, fit.points[:, 1] - cy) - r
+    assert np.max(np.abs(d)) < 0.1, np.max(np.abs(d))  # before: 0.5 px where the sheet's edge is near
+    e = Ellipse.from_conic(fit.conic)
+    assert abs(e.cx - cx) < 0.02 and abs(np.sqrt(e.a * e.b) - r) < 0.02
+    assert 0.75 < fit.kept_fraction < 0.97  # the profiles facing the sheet's edge dropped, the others kept

@@ -9,6 +9,7 @@ import pytest
 from pascal_calib_ros.calibrate.intrinsic.pipeline import calibrate
 from pascal_calib_ros.detect.detection import Detection
 from pascal_calib_ros.detect.target_detector import detect_target
+from pascal_calib_ros.geometry import ImageSize
 from pascal_calib_ros.geometry.camera import Camera, model_error
 from pascal_calib_ros.geometry.circular import vanishing_line_huang
 from pascal_calib_ros.geometry.conic import Ellipse
@@ -138,7 +139,7 @@ def test_grid_calibration_on_renders() -> None:
     res = calibrate(dets, target)
     assert res.method == "grid" and res.n_used >= 7
     assert abs(res.K[0, 0] / cam.K[0, 0] - 1) < 1e-3 and np.hypot(*(res.K[:2, 2] - cam.K[:2, 2])) < 1.5
-    assert model_error(cam, Camera(res.K, res.D), 1024, 768) < 1.5
+    assert model_error(cam, Camera(res.K, res.D), ImageSize(1024, 768)) < 1.5
 
 
 def test_real_cmu_photographs() -> None:

@@ -1,5 +1,6 @@
 import numpy as np
 
+from pascal_calib_ros.geometry import ImageSize
 from pascal_calib_ros.geometry.camera import (
     Camera,
     distort,
@@ -34,9 +35,9 @@ def test_rodrigues_round_trip() -> None:
 
 def test_model_error_is_zero_for_identical_and_positive_otherwise() -> None:
     a = Camera.from_params(800, 800, 400, 300, dist=[-0.2, 0, 0, 0, 0])
-    assert model_error(a, a, 800, 600) < 1e-9
+    assert model_error(a, a, ImageSize(800, 600)) < 1e-9
     b = Camera.from_params(800, 800, 401, 300, dist=[-0.2, 0, 0, 0, 0])
-    assert 0.9 < model_error(a, b, 800, 600) < 1.1
+    assert 0.9 < model_error(a, b, ImageSize(800, 600)) < 1.1
 
 
 def test_calibration_errors() -> None:

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from conftest import homography, random_plane_poses
 
+from pascal_calib_ros.geometry import ImageSize
 from pascal_calib_ros.geometry import circular as cp
 from pascal_calib_ros.geometry.conic import Ellipse, conic_image_of_circle
 from pascal_calib_ros.geometry.iac import iac_from_circular_points
@@ -35,7 +36,7 @@ def _line(v: dict) -> np.ndarray:
 
 
 def _k_error(points: list[np.ndarray]) -> float:
-    K = iac_from_circular_points(points, 800, 600).K
+    K = iac_from_circular_points(points, ImageSize(800, 600)).K
     return float(np.max(np.abs(K - K_TRUE)) / 500.0)
 
 

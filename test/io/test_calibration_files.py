@@ -47,7 +47,7 @@ def test_every_format_is_recognised_by_its_content(tmp_path: Path) -> None:
         cf = read_calibration_file(path)
         assert cf.format == fmt, (fmt, cf.format)
         assert cf.camera.model in ("plumb_bob", "rational_polynomial", "equidistant")
-    assert read_calibration_file(files["json"]).record.covariance is not None  # type: ignore[union-attr]
+    assert read_calibration_file(files["json"]).record.covariance is not None
     (tmp_path / "junk.yaml").write_text("just: words\n")
     with pytest.raises(CalibrationFileError, match="not a calibration file"):
         read_calibration_file(tmp_path / "junk.yaml")
@@ -62,13 +62,13 @@ def test_every_format_is_recognised_by_its_content(tmp_path: Path) -> None:
 def test_a_ros_yaml_gets_its_sidecar_only_when_it_holds_the_same_camera(tmp_path: Path) -> None:
     cam_yaml = write_ros(tmp_path / "cam.yaml")
     assert sidecar_path(cam_yaml).name == "cam.calibration.json"
-    assert read_calibration_file(cam_yaml).record is None
+    assert read_calibration_file(cam_yaml).record.covariance is None
     write_calibration_json(sidecar_path(cam_yaml), CalibrationRecord(PLUMB, "cam", "plumb_bob", NAMES, COV))
     cf = read_calibration_file(cam_yaml)
-    assert cf.record is not None and cf.record.parameters == NAMES and np.allclose(cf.record.covariance, COV)
+    assert cf.record.parameters == NAMES and np.allclose(cf.record.covariance, COV)
     write_ros(cam_yaml, RATIONAL)  # recalibrated: the old sidecar no longer applies
     cf = read_calibration_file(cam_yaml)
-    assert cf.record is None and "another camera" in cf.notes[0]
+    assert cf.record.covariance is None and "another camera" in cf.notes[0]
 
 
 def test_calibration_json_round_trip_and_checks(tmp_path: Path) -> None:

@@ -81,3 +81,50 @@ def test_bad_files_say_what_is_wrong(tmp_path: Path) -> None:
         SessionFolder.open(tmp_path / "s")
     with pytest.raises(SessionFolderError, match="cannot read"):
         SessionFolder.open(tmp_path / "missing")
+
+
+STEREO = SessionManifest("ring_grid_a4", "head", "plumb_bob", 2.2, frame_id="left_optical",
+                         child_frame_id="right_optical", cameras=("left", "right"))
+
+
+def test_shots_of_a_pair_are_read_back_exactly(tmp_path: Path) -> None:
+    """A stereo session: each shot's two frames (written before session.yaml names it), its stamps
+    and why a camera's view was not used."""
+    folder = SessionFolder.create(tmp_path / "s", STEREO)
+    folder.record_shot("shot_000000", [_frame(1), _frame(2)], [10, 11])
+    folder.record_shot("shot_000003", [_frame(3), _frame(4)], [30, 31], ["", "moving: 3 px"])
+    assert (tmp_path / "s" / "frames" / "right" / "shot_000003.png").is_file()
+    back = SessionFolder.open(tmp_path / "s")
+    assert back.manifest == SessionManifest(**{**STEREO.__dict__, "image_size": (64, 48)})
+    assert [(v.name, v.stamps_ns, v.not_used) for v in back.views] == [
+        ("shot_000000", (10, 11), ("", "")), ("shot_000003", (30, 31), ("", "moving: 3 px"))]
+    for v, seeds in zip(back.views, [(1, 2), (3, 4)], strict=True):
+        assert all(np.array_equal(back.image(v, c), _frame(s)) for c, s in enumerate(seeds))  # lossless
+    assert back.image(back.views[1]).shape == (48, 64) and back.views[1].stamp_ns == 30  # the first camera's
+
+
+def test_a_recorded_shot_is_never_overwritten(tmp_path: Path) -> None:
+    folder = SessionFolder.create(tmp_path / "s", STEREO)
+    folder.record_shot("shot_000001", [_frame(1), _frame(2)], [1, 1])
+    with pytest.raises(SessionFolderError, match="already records a view named shot_000001"):
+        folder.record_shot("shot_000001", [_frame(5), _frame(6)], [2, 2])
+    assert np.array_equal(folder.image(folder.views[0], 1), _frame(2))
+    with pytest.raises(SessionFolderError, match="already holds a session with views"):
+        SessionFolder.create(tmp_path / "s", STEREO)
+    with pytest.raises(SessionFolderError, match="one frame and one stamp for each of its cameras"):
+        folder.record_shot("shot_000002", [_frame(5)], [2])
+    with pytest.raises(SessionFolderError, match="none recorded"):  # a one-camera session records no shots
+        SessionFolder.create(tmp_path / "mono", MANIFEST).record_shot("shot", [_frame(1), _frame(2)], [1, 1])
+    assert len(SessionFolder.open(tmp_path / "s").views) == 1
+
+
+def test_a_pair_recorded_with_other_settings_names_the_differences(tmp_path: Path) -> None:
+    SessionFolder.create(tmp_path / "s", STEREO).record_shot("shot_000001", [_frame(1), _frame(2)], [1, 1])
+    recorded = SessionFolder.open(tmp_path / "s").manifest
+    asked = SessionManifest("ring_grid_a4", "head", "plumb_bob", 1.0, frame_id="left_optical",
+                            child_frame_id="cam2", cameras=("left", "right"))
+    assert recorded.differences(asked) == ["gamma: 2.2 != 1.0", "child_frame_id: 'right_optical' != 'cam2'"]
+    mono = SessionManifest("ring_grid_a4", "head", "plumb_bob", 2.2, frame_id="left_optical",
+                           child_frame_id="right_optical")
+    assert recorded.differences(mono) == ["cameras: ('left', 'right') != ()"]
+    assert yaml.safe_load((tmp_path / "s" / "session.yaml").read_text())["manifest"]["cameras"] == ["left", "right"]

@@ -168,8 +168,10 @@ def test_moving_target_is_never_stored(tmp_path: Path, ring: Target) -> None:
     frames = tmp_path / "frames"
     frames.mkdir()
     # looped: 2 px between consecutive frames, and no two frames alike, so that a frame the busy
-    # detector skips never makes two equal frames neighbours (a back-and-forth pattern did: 8, 10, 8)
-    for k, shift in enumerate(range(0, 20, 2)):
+    # detector skips never makes two equal frames neighbours (a back-and-forth pattern did: 8, 10, 8);
+    # a loop of 4 s at 8 Hz, so that even a detector busy for a whole loop on a loaded machine (seen
+    # with a 1.25 s loop) does not examine one frame twice in a row
+    for k, shift in enumerate(range(0, 64, 2)):
         cv2.imwrite(str(frames / f"f{k:02d}.png"), np.roll(img, shift, axis=1))
     dom = next_domain_id()
     cal = NodeProcess("calibration_node", {"min_views": 3, "max_motion_px": 0.5, "capture_timeout": 1.5,

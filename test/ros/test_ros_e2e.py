@@ -26,6 +26,7 @@ from ros_harness import (
     status_subscription,
 )
 
+from pascal_calib_ros.geometry import ImageSize
 from pascal_calib_ros.io.bags import write_image_bag
 from pascal_calib_ros.ros.replay_node import output_topic
 from pascal_calib_ros.sim.session import SessionSpec, render_session
@@ -73,7 +74,7 @@ def board_5mp(tmp_path_factory: pytest.TempPathFactory) -> Path:
     K = np.array(truth["K"])
     K[:2] *= 2.0
     K[:2, 2] += 0.5
-    truth.update(K=K.tolist(), width=2456, height=2058)
+    truth.update(K=K.tolist(), size=ImageSize(2456, 2058))
     (out / "session.json").write_text(json.dumps(truth, indent=1))
     return out
 
@@ -500,7 +501,7 @@ def test_detections_show_footprints_coverage_bars_and_state(tmp_path: Path, sess
         b, g, r = got[y, x].astype(int)
         assert b > g and r > g, (x, y, got[y, x])
     # the bars show what ~/status reports
-    for axis, (x0, y0, x1, y1) in bar_rects(w, h).items():
+    for axis, (x0, y0, x1, y1) in bar_rects(ImageSize(w, h)).items():
         c = float(kv[f"coverage_{axis}"])
         ym = (y0 + y1) // 2
         if c >= 1.0:

@@ -11,6 +11,7 @@ from pascal_calib_ros.analysis.guide.view_ranking import distinct_from_all
 from pascal_calib_ros.analysis.statistics.uncertainty import projection_uncertainty_of
 from pascal_calib_ros.calibrate.intrinsic.pipeline import calibrate
 from pascal_calib_ros.detect.target_detector import detect_target
+from pascal_calib_ros.geometry import ImageSize
 from pascal_calib_ros.geometry.camera import Camera
 from pascal_calib_ros.session.guide import MATCH_OVERLAP, GuideState, hint, overlap
 from pascal_calib_ros.sim.render import Pose, SensorModel, render_view
@@ -48,8 +49,8 @@ def test_hint_order() -> None:
     assert hint(sq, sq + np.array([0.0, 80.0]), 640) == "move the target down"
     assert hint(sq, (sq - 50) * 1.5 + 50, 640) == "bring the target closer"
     assert hint(sq, sq, 640) == "match the outline"
-    assert overlap(sq, sq, 640, 480) == pytest.approx(1.0)
-    assert overlap(sq, sq + np.array([200.0, 0.0]), 640, 480) == 0.0
+    assert overlap(sq, sq, ImageSize(640, 480)) == pytest.approx(1.0)
+    assert overlap(sq, sq + np.array([200.0, 0.0]), ImageSize(640, 480)) == 0.0
 
 
 def test_done_comes_from_the_recalibrated_views(ring_target: Target) -> None:
@@ -60,20 +61,20 @@ def test_done_comes_from_the_recalibrated_views(ring_target: Target) -> None:
     dets = []
     for k in range(3):
         dets.append(_shot(ring_target, g.suggestions[k].pose, 10 + k))
-        g.update(None, W, H, len(dets))
+        g.update(None, ImageSize(W, H), len(dets))
     extra = place(ring_target, TRUE, Placement((0.3 * W, 0.6 * H), g.suggestions[0].placement.distance, 40.0, 200.0,
                                                 0.0))
     dets.append(_shot(ring_target, extra, 20))
     res = calibrate(dets, ring_target)
-    g.update(res.refinement, W, H, len(dets))
-    now = projection_uncertainty_of(res.refinement, res.width, res.height)
+    g.update(res.refinement, ImageSize(W, H), len(dets))
+    now = projection_uncertainty_of(res.refinement, res.size)
     assert g.sigma_px == pytest.approx(float(np.nanmax(now.sigma)), rel=1e-4)
     assert not g.done and g.suggestions and all(s.predicted_sigma_px < g.sigma_px for s in g.suggestions)
     g.goal_sigma_px = 2 * g.sigma_px
     assert g.done
     # a recalibration that fails after a view: the next ranked view, never a bootstrap view again
     ranked = [v.placement for v in g.suggestions]
-    g.update(None, W, H, len(dets) + 1)
+    g.update(None, ImageSize(W, H), len(dets) + 1)
     assert [v.placement for v in g.suggestions] == ranked[1:] and g.index == 0 and not g.done
     assert np.isnan(g.sigma_px) and g.camera is not None
 
@@ -88,23 +89,24 @@ def test_a_refused_view_at_a_suggestion_is_not_offered_again(ring_target: Target
     line = g.refuse("no ring found")
     assert "no ring found" in line and g.avoided == [boot[0]] and g.refusals == [line]
     assert g.current is not None and g.current.placement == boot[1]
-    g.update(None, W, H, 0)  # the bootstrap again (no view yet): the refused one stays out
+    g.update(None, ImageSize(W, H), 0)  # the bootstrap again (no view yet): the refused one stays out
     assert [s.placement for s in g.suggestions] == boot[1:] and g.current.placement == boot[1]
     dets = [_shot(ring_target, place(ring_target, TRUE, p), 10 + k) for k, p in enumerate(boot)]
     extra = place(ring_target, TRUE, Placement((0.3 * W, 0.6 * H), boot[0].distance, 40.0, 200.0, 0.0))
     dets.append(_shot(ring_target, extra, 20))
     res = calibrate(dets, ring_target)
-    g.update(res.refinement, W, H, len(dets))
+    g.update(res.refinement, ImageSize(W, H), len(dets))
     fresh = GuideState(ring_target, guess, goal_sigma_px=1e-6)
-    fresh.update(res.refinement, W, H, len(dets))
+    fresh.update(res.refinement, ImageSize(W, H), len(dets))
     sigma, first = g.sigma_px, g.current
     assert first is not None and len(g.suggestions) >= 2
     g.refuse("ring cut by the image border")
     assert g.current is not None and g.current.placement != first.placement
     assert len(g.avoided) == 2 and g.sigma_px == sigma and not g.done
     # ranked again on the same views: nothing in the refused suggestion's neighbourhood, the sigma unchanged
-    g.update(res.refinement, W, H, len(dets))
-    assert g.suggestions and distinct_from_all([s.placement for s in g.suggestions], [first.placement], W, H).all()
+    g.update(res.refinement, ImageSize(W, H), len(dets))
+    assert g.suggestions and distinct_from_all([s.placement for s in g.suggestions], [first.placement],
+                                               ImageSize(W, H)).all()
     assert g.sigma_px == pytest.approx(sigma, rel=1e-12) and not g.done
     # without the refusal the ranking offers that view again (what the session did before)
     assert fresh.current is not None and fresh.current.placement == first.placement

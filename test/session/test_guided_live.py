@@ -13,6 +13,7 @@ import pytest
 from pascal_calib_ros.analysis.guide.candidates import Placement, place
 from pascal_calib_ros.calibrate.intrinsic.options import CalibrationOptions
 from pascal_calib_ros.detect.target_detector import detect_target
+from pascal_calib_ros.geometry import ImageSize
 from pascal_calib_ros.session.answer import Answer
 from pascal_calib_ros.session.guide_overlay import OUTLINE_BGR, draw_guide, guide_lines, progress
 from pascal_calib_ros.session.guided_live import COMPUTING, NEAR_OVERLAP, REFUSED_FRAMES, GuidedLive
@@ -92,9 +93,9 @@ def test_the_guide_stores_matching_views_and_says_done_from_the_real_sigma(ring_
     assert changed[H - 40:, :W].any()
     assert np.all(pic[changed] == np.array(OUTLINE_BGR), axis=1).any()
     # the panel: the coverage bars stay, the guide's progress replaces "cover more" (one notion of progress)
-    x0, y0, x1, _ = bar_rects(W, H)["skew"]
+    x0, y0, x1, _ = bar_rects(ImageSize(W, H))["skew"]
     assert not changed[:y0 + 10, W:].any()
-    _, sy = state_origin(W, H)
+    _, sy = state_origin(ImageSize(W, H))
     assert changed[sy - 20:sy + 60, W:].any()
     p = progress(guide.view())
     assert 0.0 < p < 1.0 and p == pytest.approx(guide.view().goal_sigma_px / guide.view().sigma_px)

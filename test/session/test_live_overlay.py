@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 from pascal_calib_ros.detect.detection import CircleEdge, Detection, feature_points
+from pascal_calib_ros.geometry import ImageSize
 from pascal_calib_ros.geometry.image_field import view_hulls
 from pascal_calib_ros.session.collector import AXES, ViewCollector
 from pascal_calib_ros.session.overlay import (
@@ -38,7 +39,7 @@ def _draw(img: np.ndarray, **kw) -> np.ndarray:
 
 
 def _panel_below_bars(out: np.ndarray) -> np.ndarray:
-    y = max(r[3] for r in bar_rects(W, H).values()) + 2
+    y = max(r[3] for r in bar_rects(ImageSize(W, H)).values()) + 2
     return out[y:, W:]
 
 
@@ -80,7 +81,7 @@ def test_bars_fill_with_coverage_and_turn_green_when_full() -> None:
     img = np.zeros((H, W), np.uint8)
     cov = {"x": 1.0, "y": 0.0, "size": 0.5, "skew": 0.25}
     out = _draw(img, coverage=cov)
-    rects = bar_rects(W, H)
+    rects = bar_rects(ImageSize(W, H))
     for x0, y0, x1, y1 in rects.values():
         assert W < x0 < x1 <= W + panel_width(H) and y1 > y0
     x0, y0, x1, y1 = rects["x"]
@@ -152,13 +153,14 @@ def test_bgr_frame_and_5mp_scale() -> None:
     w5, h5 = 2448, 2048
     big = _draw(np.zeros((h5, w5), np.uint8), coverage=dict.fromkeys(AXES, 1.0), views=8, ready=True)
     assert big.shape == (h5, w5 + panel_width(h5), 3) and panel_width(h5) > 3 * panel_width(H)
-    x0, y0, x1, y1 = bar_rects(w5, h5)["skew"]
-    assert y1 - y0 >= 3 * (bar_rects(W, H)["skew"][3] - bar_rects(W, H)["skew"][1])  # bars grow with the image
+    x0, y0, x1, y1 = bar_rects(ImageSize(w5, h5))["skew"]
+    small = bar_rects(ImageSize(W, H))["skew"]
+    assert y1 - y0 >= 3 * (small[3] - small[1])  # bars grow with the image
     assert np.all(big[y0:y1, x0:x1] == BAR_FULL_BGR)
     # a small frame: the panel's content still fits (the state text above the bottom)
     small = _draw(np.zeros((240, 320), np.uint8), coverage=dict.fromkeys(AXES, 1.0), views=8, ready=True)
     assert small.shape == (240, 320 + panel_width(240), 3)
-    assert _has(small[max(r[3] for r in bar_rects(320, 240).values()) + 2:, 320:], BAR_FULL_BGR)  # READY
+    assert _has(small[max(r[3] for r in bar_rects(ImageSize(320, 240)).values()) + 2:, 320:], BAR_FULL_BGR)  # READY
 
 
 def test_feature_points_take_edges_and_corners() -> None:

@@ -11,6 +11,7 @@ import pytest
 
 from pascal_calib_ros.analysis.guide.candidates import Placement, place
 from pascal_calib_ros.analysis.guide.view_ranking import distinct_from_all
+from pascal_calib_ros.geometry import ImageSize
 from pascal_calib_ros.studies import guided_strategies as gs
 from pascal_calib_ros.studies.guided_study import cases
 from pascal_calib_ros.targets import resolve_target
@@ -68,7 +69,7 @@ def test_a_refused_bootstrap_view_is_not_asked_again() -> None:
     guide.rejected("no ring found")
     guide.next(state)
     assert guide.last is not None and first is not None
-    assert distinct_from_all([guide.last], [first], 1280, 720)[0]
+    assert distinct_from_all([guide.last], [first], ImageSize(1280, 720))[0]
     assert guide.repeated == 0 and guide.asked[0]["refused"] == "no ring found"
 
 
@@ -76,14 +77,14 @@ def test_the_guide_passes_refused_suggestions_as_avoid(monkeypatch: pytest.Monke
     """After a calibration exists the study's guide asks :func:`suggest_views` with ``avoid``: the
     placements whose views were refused (the node's GuideState.refuse path)."""
     state = _state()
-    cal = SimpleNamespace(refinement=SimpleNamespace(covariance=np.eye(2)), width=1280, height=720)
+    cal = SimpleNamespace(refinement=SimpleNamespace(covariance=np.eye(2)), size=ImageSize(1280, 720))
     state.calibration = cal  # type: ignore[assignment]
     seen: list[list[Placement]] = []
     offers = [Placement((300.0, 300.0), 0.25, 25.0, 0.0, 0.0), Placement((900.0, 400.0), 0.25, 25.0, 90.0, 0.0)]
 
-    def fake(res: Any, target: Any, w: int, h: int, n: int = 5, avoid: list[Placement] = ()) -> Any:  # type: ignore[assignment]
+    def fake(res: Any, target: Any, size: ImageSize, n: int = 5, avoid: list[Placement] = ()) -> Any:  # type: ignore[assignment]
         seen.append(list(avoid))
-        keep = [p for p in offers if distinct_from_all([p], list(avoid), w, h)[0]] if avoid else offers
+        keep = [p for p in offers if distinct_from_all([p], list(avoid), size)[0]] if avoid else offers
         return SimpleNamespace(sigma_px=1.0, suggestions=[SimpleNamespace(placement=p) for p in keep])
 
     monkeypatch.setattr(gs, "suggest_views", fake)

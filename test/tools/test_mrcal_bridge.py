@@ -25,6 +25,8 @@ from pascal_calib_ros.targets import resolve_target
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tools"))
 import mrcal_bridge
 
+from pascal_calib_ros.geometry import ImageSize
+
 OK, WHY = mrcal_bridge.available()
 pytestmark = pytest.mark.skipif(not OK, reason=WHY)
 
@@ -99,8 +101,8 @@ def test_uncertainty_equals_ours_for_the_same_observations_and_noise(session) ->
         return R, t
 
     distance = float(np.median(np.linalg.norm(view_poses_of(sol.x)[1], axis=1)))
-    ours = projection_uncertainty(camera_of, view_poses_of, sol.x, cov, W, H, distance)
-    ours_inf = projection_uncertainty(camera_of, view_poses_of, sol.x, cov, W, H, 1e9)  # infinity, to 1e-9
+    ours = projection_uncertainty(camera_of, view_poses_of, sol.x, cov, ImageSize(W, H), distance)
+    ours_inf = projection_uncertainty(camera_of, view_poses_of, sol.x, cov, ImageSize(W, H), 1e9)  # infinity, to 1e-9
     ans = mrcal_bridge.uncertainty(corners, obj, (W, H), grid=ours.pixels, distance=distance, noise=noise,
                                    focal=700.0)
     # the same optimum (the two solvers stop within 1e-4 px of each other in a flat valley)

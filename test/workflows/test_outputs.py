@@ -13,6 +13,7 @@ from pascal_calib_ros.calibrate.intrinsic.pipeline import calibrate
 from pascal_calib_ros.io.calibration_json import read_calibration_json
 from pascal_calib_ros.io.camera_yaml import read_camera_yaml
 from pascal_calib_ros.targets import Target
+from pascal_calib_ros.workflows.calibration_record import record_of_result
 from pascal_calib_ros.workflows.intrinsic import run_intrinsic
 from pascal_calib_ros.workflows.outputs import (
     ReportRequest,
@@ -20,7 +21,7 @@ from pascal_calib_ros.workflows.outputs import (
     calibration_file_path,
     camera_info_data,
     output_folder,
-    write_camera_file,
+    write_calibration,
 )
 
 
@@ -39,8 +40,12 @@ def test_the_camera_yaml_and_json_of_a_calibration(ring_target: Target, ring_ses
     res = calibrate(dets, ring_target)
     info = camera_info_data(res, "wrist")
     assert np.allclose(info.projection[:, :3], res.K) and np.all(info.projection[:, 3] == 0)
-    back = read_camera_yaml(write_camera_file(res, tmp_path / "c.yaml", "wrist"))
+    yaml_path, json_path = write_calibration(record_of_result(res, "wrist"), tmp_path / "c.yaml")
+    back = read_camera_yaml(yaml_path)
     assert back.camera_name == "wrist" and np.allclose(back.K, res.K) and np.allclose(back.D, res.D)
+    assert json_path == tmp_path / "c.calibration.json"
+    rec = read_calibration_json(json_path)  # one record, two files: the same camera in both
+    assert np.array_equal(rec.camera.K, back.K) and np.array_equal(rec.camera.D, back.D)
 
 
 def test_an_outcome_writes_one_set_of_files_wherever_its_paths_say(ring_target: Target, ring_session,

@@ -11,6 +11,7 @@ import yaml
 
 from pascal_calib_ros.analysis.guide.candidates import feature_centre
 from pascal_calib_ros.cli import main
+from pascal_calib_ros.geometry import ImageSize
 from pascal_calib_ros.geometry.transform import Transform
 from pascal_calib_ros.io.hand_eye_yaml import write_poses_yaml
 from pascal_calib_ros.sim.arm import ArmSpec, simulate_arm_session
@@ -156,7 +157,8 @@ def test_warm_arm_suggestions_answer_what_the_cold_call_answers() -> None:
     assert after["avoided"] == [before["suggestions"][0]["placement"]]
     assert len(after["suggestions"]) == len(before["suggestions"])
     assert after["suggestions"][0] != before["suggestions"][0]
-    assert distinct_from_all([placement_of_doc(sg["placement"]) for sg in after["suggestions"]], [was], 640, 480,
+    assert distinct_from_all([placement_of_doc(sg["placement"]) for sg in after["suggestions"]], [was],
+                             ImageSize(640, 480),
                              DISTINCT_ROLL_DEG).all()
     for key in ("projection_sigma_px", "hand_eye_sigma_deg", "hand_eye_sigma_mm", "done", "views_used"):
         assert after[key] == pytest.approx(before[key], rel=1e-4)
@@ -200,7 +202,8 @@ def test_a_refused_newest_image_makes_the_previous_first_suggestion_avoided(
     assert doc2["avoided"] == [doc1["suggestions"][0]["placement"]]
     assert doc2["suggestions"] and doc2["views_used"] == doc1["views_used"]
     assert doc2["projection_sigma_px"] == doc1["projection_sigma_px"] and doc2["done"] == doc1["done"]
-    assert distinct_from_all([placement_of_doc(s["placement"]) for s in doc2["suggestions"]], [was], 640, 480).all()
+    assert distinct_from_all([placement_of_doc(s["placement"]) for s in doc2["suggestions"]], [was],
+                             ImageSize(640, 480)).all()
     # the next call, its newest image measured: the avoided placement is carried on, nothing added
     os.utime(folder / views[0].name, (newest + 10, newest + 10))
     assert main(["suggest", "--target", "ring_a4", "-n", "3", "--goal-sigma", "0.01", "--previous", str(second),

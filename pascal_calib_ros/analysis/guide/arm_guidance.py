@@ -39,7 +39,7 @@ from scipy.spatial.transform import Rotation
 
 from ...calibrate import CalibrationOptions
 from ...calibrate.handeye import ChainProblem, HandEyeResult, RobotChain, chain_pose
-from ...geometry import DISTORTION_CHOICES, Transform, left_jacobian
+from ...geometry import DISTORTION_CHOICES, ImageSize, Transform, left_jacobian
 from ...modes import HandEyeMode
 from ...targets import Target
 from .candidates import (
@@ -148,7 +148,7 @@ def _local_y(target: Target, Y_yaml: Transform) -> Transform:
 
 
 def arm_model(hres: HandEyeResult, robot_poses: Sequence[Transform], target: Target, noise: NoiseModel,
-              width: int, height: int,
+              size: ImageSize,
               options: CalibrationOptions = CalibrationOptions(),  # noqa: B008 (frozen dataclass)
               bias: DetectorBias | None = None, keep_kappa: bool = True) -> ArmModel:
     """The joint problem at the hand-eye estimate (module docstring). ``robot_poses`` are the tool
@@ -194,7 +194,7 @@ def arm_model(hres: HandEyeResult, robot_poses: Sequence[Transform], target: Tar
     extra = np.zeros((6, len(x)))
     extra[:, prob.n_base:prob.n_base + 6] = np.eye(6)
     lin = Linearisation(prob, x, intr0, var, w, cal.model, extra)
-    pred = ViewPredictor(lin, width, height) if bias is None else BiasedPredictor(lin, width, height, n_img, bias)
+    pred = ViewPredictor(lin, size) if bias is None else BiasedPredictor(lin, size, n_img, bias)
     return ArmModel(pred, ArmFrames(hres.mode, hres.hand_eye, hres.target), prob, float(kappa[0]))
 
 
@@ -366,7 +366,7 @@ def arm_candidates(model: ArmModel, target: Target, trust: TrustRegion, grid: Ca
     seen = [placement_of(target, cam, model.frames.camera_pose(g)) for g in trust.visited]
     placed = [ok[k] for k in keep]
     if seen and len(keep):
-        new = distinct_from_all(placed, seen, cam.width, cam.height, roll_deg=DISTINCT_ROLL_DEG)
+        new = distinct_from_all(placed, seen, cam.size, roll_deg=DISTINCT_ROLL_DEG)
         keep, placed = keep[new], [p for p, n in zip(placed, new, strict=True) if n]
     return ([Candidate(p, T) for p, T in zip(placed, transforms(R[keep], t[keep]), strict=True)],
             transforms(GR[keep], Gt[keep]))

@@ -23,16 +23,17 @@ from __future__ import annotations
 import numpy as np
 
 from ...detect import DetectionParams
-from ...geometry import Camera, ellipses_from_conics, fit_conics_algebraic
+from ...geometry import Camera, ImageSize, ellipses_from_conics, fit_conics_algebraic
 from ...targets import Target
 
 POINTS = 64  # points per imaged circle (the median is weighted by the arc each stands for)
 RING, HOLE, DISC, ELEMENT = 0, 1, 2, 3
 
 
-def contour_scale(width: int, height: int, params: DetectionParams) -> int:
+def contour_scale(size: ImageSize, params: DetectionParams) -> int:
     """The detector's downscale for its outline search: halved (``cv2.pyrDown``, sizes rounded
     up) until at most ``params.working_pixels`` pixels remain."""
+    width, height = size
     s, w, h = 1, width, height
     while w * h > params.working_pixels:
         w, h, s = (w + 1) // 2, (h + 1) // 2, 2 * s
@@ -85,7 +86,7 @@ def shape_shares(target: Target, camera: Camera, R: np.ndarray, t: np.ndarray,
     ``2/3 tol sqrt(ab) + 0.7``), a ring's spread over ``4 tol + 8 s / b_hole``; inf where a circle
     does not image (behind the camera, a folding lens)."""
     params = params or DetectionParams.for_lens(camera.lens.wide)
-    tol, s = params.ellipse_tolerance, contour_scale(camera.width, camera.height, params)
+    tol, s = params.ellipse_tolerance, contour_scale(camera.size, params)
     ctr, rad, kind, pairs = shape_circles(target)
     C, K = len(R), len(ctr)
     if not C or not K:

@@ -45,6 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...calibrate import Problem, ViewData
+from ...geometry import ImageSize
 from .guidance import (
     ChainRows,
     Linearisation,
@@ -129,9 +130,9 @@ class BiasedPredictor(ViewPredictor):
     """:class:`.guidance.ViewPredictor` whose meat B carries the detector's bias (module
     docstring); ``n_image`` rows of the problem are image rows (the rest, a robot chain's)."""
 
-    def __init__(self, lin: Linearisation, width: int, height: int, n_image: int,
+    def __init__(self, lin: Linearisation, size: ImageSize, n_image: int,
                  bias: DetectorBias = DETECTOR_BIAS):
-        super().__init__(lin, width, height)
+        super().__init__(lin, size)
         self.bias = bias
         prob = self.prob
         f, Jg, Jv = prob.evaluate(lin.x, lin.intr0)

@@ -46,7 +46,7 @@ import numpy as np
 import scipy.linalg
 
 from ...calibrate import Problem, RefineResult, ViewData
-from ...geometry import Camera, grid_pixels, grid_shape, project_with_jacobians
+from ...geometry import Camera, ImageSize, grid_pixels, grid_shape, project_with_jacobians
 
 
 @dataclass(frozen=True)
@@ -150,10 +150,11 @@ class ViewPredictor:
     linearised calibration. ``step`` is the grid's spacing (default: the image's larger side / 40,
     as :func:`..analysis.uncertainty.projection_uncertainty`)."""
 
-    def __init__(self, lin: Linearisation, width: int, height: int, step: float | None = None):
-        self.lin, self.width, self.height = lin, width, height
+    def __init__(self, lin: Linearisation, size: ImageSize, step: float | None = None):
+        width, height = size
+        self.lin, self.size, self.width, self.height = lin, size, width, height
         prob = self.prob = lin.problem
-        self.step = step or max(width, height) / 40.0
+        self.step = step or max(size) / 40.0
         f, Jg, Jv = prob.evaluate(lin.x, lin.intr0)
         self.A, _ = prob.normal_equations(f, Jg, Jv, lin.w)
         self.B, _ = prob.normal_equations(f, Jg, Jv, lin.var)
@@ -161,14 +162,14 @@ class ViewPredictor:
         self.nI, self.ng, self.pv, self.nv = len(prob.free), prob.ng, prob.per_view, prob.nv
         W, t = rotation_maps(prob, lin.x, lin.intr0)
         self.t_views = t
-        size = len(lin.x)
-        Lv = np.zeros((6, size))
+        n_x = len(lin.x)
+        Lv = np.zeros((6, n_x))
         for i, li in enumerate(pose_readout(W, t, self.pv)):
             s = self.ng + i * self.pv
             Lv[:, s:s + self.pv] = li / self.nv
-        EI = np.zeros((self.nI, size))
+        EI = np.zeros((self.nI, n_x))
         EI[:, :self.nI] = np.eye(self.nI)
-        extra = lin.extra if lin.extra is not None else np.zeros((0, size))
+        extra = lin.extra if lin.extra is not None else np.zeros((0, n_x))
         self.n_extra = len(extra)
         self.L = np.concatenate([EI, Lv, extra])  # readout of the current views
         self.k = len(self.L)
@@ -192,7 +193,7 @@ class ViewPredictor:
     # -- the image ------------------------------------------------------------------------------
     def _pixel_jacobians(self, step: float) -> tuple[np.ndarray, np.ndarray]:
         """Grid pixels (M, 2) with a ray, and G (M, 2, k) at unit distance (tau columns x 1/d)."""
-        uv = grid_pixels(self.width, self.height, step)
+        uv = grid_pixels(self.size, step)
         rays = self.camera.unproject(uv)
         ok = np.all(np.isfinite(rays), 1)
         uv, rays = uv[ok], rays[ok]
@@ -208,8 +209,8 @@ class ViewPredictor:
 
     def grid_jacobians(self, coarse: int = 1) -> tuple[np.ndarray, np.ndarray]:
         """(pixels, G) of the grid, every ``coarse``-th row and column (the outermost kept)."""
-        rows, cols = grid_shape(self.width, self.height, self.step)
-        uv_all = grid_pixels(self.width, self.height, self.step)
+        rows, cols = grid_shape(self.size, self.step)
+        uv_all = grid_pixels(self.size, self.step)
         keep_r = np.unique(np.r_[np.arange(0, rows, coarse), rows - 1])
         keep_c = np.unique(np.r_[np.arange(0, cols, coarse), cols - 1])
         sel = (keep_r[:, None] * cols + keep_c[None, :]).ravel()

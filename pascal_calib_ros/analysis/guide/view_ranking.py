@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...calibrate import CalibrationOptions, PlanePose, RefineResult, pose_to_params
-from ...geometry import Camera, Transform
+from ...geometry import Camera, ImageSize, Transform
 from ...targets import Target
 from .candidates import (
     Candidate,
@@ -77,13 +77,14 @@ def predict_poses(pred: ViewPredictor, target: Target, poses: list[Transform], o
 DISTINCT_TILT_DEG = 20.0  # tilts (as vectors: magnitude along the axis' direction) this far apart differ
 
 
-def distinct(a: Placement, b: Placement, width: int, height: int, roll_deg: float = 0.0) -> bool:
+def distinct(a: Placement, b: Placement, size: ImageSize, roll_deg: float = 0.0) -> bool:
     """Whether two views differ enough to be offered side by side: centres 15 % of the image
     diagonal apart, or distances 30 % apart, or tilts :data:`DISTINCT_TILT_DEG` apart (the tilt
     as a vector, its length the angle, its direction the axis', so that a head-on view and one
     tilted 25 degrees differ, and two views tilted 25 degrees about axes 60 degrees apart), or,
     with ``roll_deg`` > 0, rolls about the sheet's normal more than ``roll_deg`` apart (for an arm
     a view turned about the optical axis is a new motion, the one the hand-eye rotation needs)."""
+    width, height = size
     if np.hypot(a.pixel[0] - b.pixel[0], a.pixel[1] - b.pixel[1]) > 0.15 * np.hypot(width, height):
         return True
     if abs(np.log(a.distance / b.distance)) > np.log(1.3):
@@ -95,13 +96,13 @@ def distinct(a: Placement, b: Placement, width: int, height: int, roll_deg: floa
     return bool(np.linalg.norm(ta - tb) > DISTINCT_TILT_DEG)
 
 
-def pick_distinct(ranked: list[RankedView], n: int, width: int, height: int, roll_deg: float = 0.0
+def pick_distinct(ranked: list[RankedView], n: int, size: ImageSize, roll_deg: float = 0.0
                   ) -> list[RankedView]:
     """The best ``n`` of ``ranked`` (sorted best first), each distinct from those before it
     (:func:`distinct`, with ``roll_deg``)."""
     out: list[RankedView] = []
     for r in ranked:
-        if all(distinct(r.placement, o.placement, width, height, roll_deg) for o in out):
+        if all(distinct(r.placement, o.placement, size, roll_deg) for o in out):
             out.append(r)
         if len(out) == n:
             break
@@ -133,7 +134,7 @@ def rank_candidates(pred: ViewPredictor, target: Target, candidates: list[Candid
     ranked = [RankedView(poses[i], candidates[i].placement, float(exact.sigma_px[j]), exact.readout_cov[j], float(s[j]))
               for j, i in enumerate(keep)]
     ranked.sort(key=lambda r: r.score)
-    return pick_distinct(ranked, n, pred.width, pred.height, roll_deg)
+    return pick_distinct(ranked, n, pred.size, roll_deg)
 
 
 @dataclass(frozen=True)
@@ -162,20 +163,21 @@ def captured_placements(target: Target, camera: Camera, R: np.ndarray, t: np.nda
     return [placement_of(target, camera, yaml_pose(target, Ri, ti)) for Ri, ti in zip(R, t, strict=True)]
 
 
-def unseen(candidates: list[Candidate], seen: list[Placement], width: int, height: int,
+def unseen(candidates: list[Candidate], seen: list[Placement], size: ImageSize,
            roll_deg: float = 0.0) -> list[Candidate]:
     """The candidates distinct (:func:`distinct`) from every captured view. The covariance knows
     only the noise that averages out; a view taken again where one was taken repeats that view's
     detection biases (which do not), so the guide offers something new."""
     if not candidates or not seen:
         return list(candidates)
-    new = distinct_from_all([c[0] for c in candidates], seen, width, height, roll_deg)
+    new = distinct_from_all([c[0] for c in candidates], seen, size, roll_deg)
     return [c for c, keep in zip(candidates, new, strict=True) if keep]
 
 
-def distinct_from_all(a: list[Placement], b: list[Placement], width: int, height: int, roll_deg: float = 0.0
+def distinct_from_all(a: list[Placement], b: list[Placement], size: ImageSize, roll_deg: float = 0.0
                       ) -> np.ndarray:
     """Per placement of ``a`` whether it is :func:`distinct` from every one of ``b`` (all pairs at once)."""
+    width, height = size
 
     def arrays(ps: list[Placement]) -> tuple[np.ndarray, ...]:
         ax = np.radians([p.axis_deg for p in ps])
@@ -192,7 +194,7 @@ def distinct_from_all(a: list[Placement], b: list[Placement], width: int, height
     return np.all(d, axis=1)
 
 
-def suggest_views(res: RefineResult, target: Target, width: int, height: int, n: int = 5,
+def suggest_views(res: RefineResult, target: Target, size: ImageSize, n: int = 5,
                   grid: CandidateGrid = CandidateGrid(),  # noqa: B008 (frozen dataclass)
                   rules: Feasibility | None = None,
                   options: CalibrationOptions = CalibrationOptions(),  # noqa: B008
@@ -200,12 +202,13 @@ def suggest_views(res: RefineResult, target: Target, width: int, height: int, n:
     """The ``n`` best next views for a person holding the target (module docstring). ``avoid``:
     placements whose views the detector refused; no candidate in their neighbourhood (not
     :func:`distinct` from one) is offered, as for a captured view (:func:`unseen`)."""
-    pred = ViewPredictor(Linearisation.of_refinement(res), width, height)
+    width = size.width
+    pred = ViewPredictor(Linearisation.of_refinement(res), size)
     rules = rules or default_feasibility(target, width, view_distances(target, res))
     placements = candidate_placements(pred.camera_sized, grid, target) + partial_placements(pred.camera_sized, target)
     cands = feasible_candidates(target, pred.camera_sized, placements, rules)
     assert res.x is not None
     R, t = res.view_poses_of(res.x)
-    cands = unseen(cands, captured_placements(target, pred.camera_sized, R, t) + list(avoid), width, height)
+    cands = unseen(cands, captured_placements(target, pred.camera_sized, R, t) + list(avoid), size)
     ranked = rank_candidates(pred, target, cands, n, options)
     return ViewSuggestions(pred.sigma_now(), pred.distance_now, ranked, len(cands), pred.camera_sized)

@@ -181,7 +181,7 @@ def refit_camera(source: Camera, choice: str, region_mask: np.ndarray | None = N
                          f"{source.width}x{source.height}")
     lens = DISTORTION_CHOICES[choice][0]
     step = max(source.width, source.height) / FIT_STEP_DIVISOR
-    q = grid_pixels(source.width, source.height, step, region_mask)
+    q = grid_pixels(source.size, step, region_mask)
     rays = source.unproject(q)
     ok = np.all(np.isfinite(rays), 1)
     q, rays = q[ok], rays[ok]
@@ -192,7 +192,16 @@ def refit_camera(source: Camera, choice: str, region_mask: np.ndarray | None = N
         raise RefitError(f"{region} sees rays up to {angle:.0f} degrees from the axis; a {lens.name} model (x/z) "
                          f"cannot describe rays beyond about {PINHOLE_MAX_ANGLE_DEG:.0f} degrees: restrict the region "
                          "(--region REPORT_JSON) or export a model that can (equidistant, mrcal)")
-    cam = _fit(rays, q, source, choice)
+    return measured_refit(source, _fit(rays, q, source, choice), choice, region_mask, region, threshold_px=threshold_px,
+                          force=force, advice="; --region REPORT_JSON fits only the observed field")
+
+
+def measured_refit(source: Camera, cam: Camera, choice: str, region_mask: np.ndarray | None, region: str, *,
+                   threshold_px: float, force: bool, advice: str = "") -> RefitResult:
+    """A refit ``cam`` of ``source`` measured as every refit is: its projection difference over the
+    region (:func:`~..statistics.compare.projection_difference`), the worst error with the region's
+    boundary (:func:`worst_with_boundary`), the largest move of a pixel with no rotation allowed;
+    refused above ``threshold_px`` unless ``force`` (``advice`` ends the refusal's hint)."""
     try:
         diff = projection_difference(source, cam, region_mask, step=measure_step(source))
     except CompareError as e:
@@ -204,5 +213,5 @@ def refit_camera(source: Camera, choice: str, region_mask: np.ndarray | None = N
                       worst_px=worst, worst_pixel=at)
     if not res.ok and not force:
         raise RefitError(f"{res.summary()}; {res.where_it_fails()}. Refused: above --max-error {threshold_px:g} px "
-                         "(--force writes it anyway; --region REPORT_JSON fits only the observed field)")
+                         f"(--force writes it anyway{advice})")
     return res

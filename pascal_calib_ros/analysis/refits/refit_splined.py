@@ -17,8 +17,7 @@ import numpy as np
 
 from ...geometry import Camera, grid_pixels
 from ...io import SplinedModel, design_matrix, splined_camera, stereographic
-from ..statistics.compare import CompareError, projection_difference
-from .refit import DEFAULT_MAX_ERROR_PX, FIT_STEP_DIVISOR, RefitError, RefitResult, measure_step, worst_with_boundary
+from .refit import DEFAULT_MAX_ERROR_PX, FIT_STEP_DIVISOR, RefitError, RefitResult, measured_refit
 
 NX = 24  # knots across the image
 FOV_MARGIN_DEG = 4  # degrees added to the image's horizontal field
@@ -68,7 +67,7 @@ def refit_splined(source: Camera, region_mask: np.ndarray | None = None, region:
     the result's ``camera`` is a :class:`SplinedCamera`. Raises :class:`~.refit.RefitError` as
     :func:`~.refit.refit_camera` does."""
     nx, ny, fov = _grid_shape(source)
-    q = grid_pixels(source.width, source.height, max(source.width, source.height) / FIT_STEP_DIVISOR, region_mask)
+    q = grid_pixels(source.size, max(source.width, source.height) / FIT_STEP_DIVISOR, region_mask)
     rays = source.unproject(q)
     ok = np.all(np.isfinite(rays), 1)
     q, rays = q[ok], rays[ok]
@@ -83,17 +82,5 @@ def refit_splined(source: Camera, region_mask: np.ndarray | None = None, region:
     lam = SMOOTHING * float(np.mean(np.diag(N)))
     ctrl = np.linalg.solve(N + lam * (L.T @ L), A.T @ target)  # (nx ny, 2)
     model = SplinedModel(nx, ny, fov, np.r_[fx, fy, cx, cy, ctrl.ravel()], source.width, source.height)
-    cam = splined_camera(model)
-    try:
-        diff = projection_difference(source, cam, region_mask, step=measure_step(source))
-    except CompareError as e:
-        raise RefitError(f"the refit cannot be measured over {region}: {e}") from None
-    frame = cam.project(source.unproject(diff.pixels)) - diff.pixels
-    worst, at = worst_with_boundary(source, cam, diff, region_mask)
-    res = RefitResult(camera=cam, source=source, choice=model.lensmodel, region=region, diff=diff,
-                      frame_max_px=float(np.nanmax(np.linalg.norm(frame, axis=1))), threshold_px=threshold_px,
-                      worst_px=worst, worst_pixel=at)
-    if not res.ok and not force:
-        raise RefitError(f"{res.summary()}; {res.where_it_fails()}. Refused: above --max-error {threshold_px:g} px "
-                         "(--force writes it anyway)")
-    return res
+    return measured_refit(source, splined_camera(model), model.lensmodel, region_mask, region,
+                          threshold_px=threshold_px, force=force)

@@ -60,8 +60,8 @@ def residual_samples_of(res: CalibrationResult) -> ResidualSamples:
 def model_bias_of(res: CalibrationResult) -> ModelBias:
     """The verdict whether the residuals of a calibration carry a pattern beyond noise."""
     s = residual_samples_of(res)
-    return model_bias(regional(s, res.width, res.height), radial(s, (float(res.K[0, 2]), float(res.K[1, 2]))),
-                      res.width, res.height, res.model)
+    return model_bias(regional(s, res.size), radial(s, (float(res.K[0, 2]), float(res.K[1, 2]))),
+                      res.size, res.model)
 
 
 def assess(res: CalibrationResult, distance: float | None = None) -> Assessment:
@@ -85,7 +85,7 @@ def assess(res: CalibrationResult, distance: float | None = None) -> Assessment:
     ref = res.refinement
     projection = None
     if ref is not None and ref.covariance is not None and ref.x is not None:
-        projection = projection_uncertainty_of(ref, res.width, res.height, distance)
+        projection = projection_uncertainty_of(ref, res.size, distance)
     bias = model_bias_of(res) if res.refined and res.edge_points else None
     return Assessment(res, projection, bias)
 

@@ -36,8 +36,8 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from ...errors import PascalCalibError
-from ...geometry import Camera, Transform, grid_pixels, grid_shape, hulls_mask
-from ...io import ReportJsonError, read_camera_yaml, read_view_hulls
+from ...geometry import Camera, ImageSize, Transform, grid_pixels, grid_shape, hulls_mask
+from ...io import ReportJsonError, read_view_hulls
 
 DEFAULT_STEP = 16.0  # px between grid points
 MIN_POINTS = 3  # fewer common grid points leave the rotation undetermined
@@ -100,12 +100,17 @@ class ProjectionDiff:
     def image(self) -> tuple[np.ndarray, tuple[float, float, float, float]]:
         """The magnitudes on the grid as an image (rows, cols), NaN where no point is, and its
         extent (left, right, bottom, top) in pixels for ``imshow(origin="upper")``."""
-        rows, cols = grid_shape(self.width, self.height, self.step)
+        rows, cols = grid_shape(self.size, self.step)
         img = np.full((rows, cols), np.nan)
         c = np.round((self.pixels[:, 0] - self.step / 2) / self.step).astype(int)
         r = np.round((self.pixels[:, 1] - self.step / 2) / self.step).astype(int)
         img[r, c] = self.magnitude
         return img, (0.0, cols * self.step, rows * self.step, 0.0)
+
+    @property
+    def size(self) -> ImageSize:
+        """The image size (width, height)."""
+        return ImageSize(self.width, self.height)
 
 
 def _within_range(cam: Camera, X: np.ndarray) -> np.ndarray:
@@ -158,7 +163,7 @@ def projection_difference(a: Camera, b: Camera, region_mask: np.ndarray | None =
     if region_mask is not None and region_mask.shape != (a.height, a.width):
         raise CompareError(f"the region is {region_mask.shape[1]}x{region_mask.shape[0]}, the images "
                            f"{a.width}x{a.height}")
-    q_all = grid_pixels(a.width, a.height, step, region_mask)
+    q_all = grid_pixels(a.size, step, region_mask)
     rays_a = a.unproject(q_all)
     ok = np.all(np.isfinite(rays_a), 1)
     # start: the rotation that carries A's rays onto B's rays of the same pixels (Wahba's problem)
@@ -186,15 +191,6 @@ def projection_difference(a: Camera, b: Camera, region_mask: np.ndarray | None =
                           n_excluded=int(len(q_all) - use.sum()))
 
 
-def camera_from_yaml(path: str | Path) -> Camera:
-    """A :class:`Camera` from a ROS ``camera_calibration_parsers`` YAML (K, D, size, model)."""
-    info = read_camera_yaml(path)
-    try:
-        return Camera(info.K, info.D, info.width, info.height, info.distortion_model)
-    except ValueError as e:  # unknown model, wrong number of coefficients
-        raise CompareError(f"{path}: {e}") from None
-
-
 @dataclass(frozen=True)
 class Region:
     """The observed field of a calibration: the convex hulls of its views (polygons of pixels)."""
@@ -206,7 +202,12 @@ class Region:
     @property
     def mask(self) -> np.ndarray:
         """(height, width) bool: inside some hull."""
-        return hulls_mask(self.hulls, self.width, self.height)
+        return hulls_mask(self.hulls, self.size)
+
+    @property
+    def size(self) -> ImageSize:
+        """The image size (width, height)."""
+        return ImageSize(self.width, self.height)
 
 
 def region_from_report(path: str | Path) -> Region:

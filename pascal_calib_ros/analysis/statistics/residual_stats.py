@@ -29,6 +29,8 @@ from typing import Any
 import numpy as np
 from scipy.stats import chi2, norm
 
+from ...geometry import ImageSize
+
 ALPHA = 1e-3  # family-wise probability of a false alarm on pure noise
 REGIONAL_FLOOR_PX = 0.02  # a regional mean below this is not called a bias, however significant
 RADIAL_FLOOR_PX = 0.008
@@ -100,12 +102,14 @@ def residual_samples(edge_points: list[np.ndarray], edge_residuals: list[np.ndar
                            np.concatenate(corner))
 
 
-def region_grid(width: int, height: int, cols: int = GRID_COLS) -> tuple[int, int]:
+def region_grid(size: ImageSize, cols: int = GRID_COLS) -> tuple[int, int]:
     """(rows, cols) of square-ish regions: ``cols`` across, as many rows as the aspect gives."""
+    width, height = size
     return max(1, round(cols * height / width)), cols
 
 
-def _cells(points: np.ndarray, width: int, height: int, grid: tuple[int, int]) -> np.ndarray:
+def _cells(points: np.ndarray, size: ImageSize, grid: tuple[int, int]) -> np.ndarray:
+    width, height = size
     rows, cols = grid
     i = np.clip((points[:, 1] * rows / height).astype(int), 0, rows - 1)
     j = np.clip((points[:, 0] * cols / width).astype(int), 0, cols - 1)
@@ -134,11 +138,11 @@ class Regional:
                 "chi2": np.round(self.chi2.reshape(shape), 3).tolist()}
 
 
-def regional(s: ResidualSamples, width: int, height: int, grid: tuple[int, int] | None = None) -> Regional:
+def regional(s: ResidualSamples, size: ImageSize, grid: tuple[int, int] | None = None) -> Regional:
     """mrcal's regional residuals with a noise test per region (see the module docstring)."""
-    grid = grid or region_grid(width, height)
+    grid = grid or region_grid(size)
     n_cells = grid[0] * grid[1]
-    cell = _cells(s.points, width, height, grid)
+    cell = _cells(s.points, size, grid)
     count = np.bincount(cell, minlength=n_cells)
     eff = np.bincount(cell, 1.0 / np.maximum(s.kappa, 1.0), minlength=n_cells)
     mean = np.zeros((n_cells, 2))
@@ -207,9 +211,10 @@ class ModelBias:
                 "hint": self.hint, "biased_regions": np.asarray(self.biased_regions, bool).tolist()}
 
 
-def model_bias(reg: Regional, rad: Radial, width: int, height: int, model: str) -> ModelBias:
+def model_bias(reg: Regional, rad: Radial, size: ImageSize, model: str) -> ModelBias:
     """The verdict: a systematic residual pattern beyond noise and floor (module docstring), with
     what to try in words."""
+    width, height = size
     cells = reg.effective >= MIN_EFFECTIVE
     rings = rad.effective >= MIN_EFFECTIVE
     n_tests = max(int(cells.sum() + rings.sum()), 1)
@@ -245,13 +250,13 @@ def model_bias(reg: Regional, rad: Radial, width: int, height: int, model: str) 
                      int(bad_cells.sum()), int(bad_rings.sum()), hint, bad_cells)
 
 
-def views_per_region(points_per_view: list[np.ndarray], width: int, height: int,
+def views_per_region(points_per_view: list[np.ndarray], size: ImageSize,
                      grid: tuple[int, int] | None = None) -> np.ndarray:
     """(rows, cols) counts: how many views have a feature point in each region."""
-    grid = grid or region_grid(width, height)
+    grid = grid or region_grid(size)
     out = np.zeros(grid[0] * grid[1], int)
     for p in points_per_view:
         p = np.asarray(p, float).reshape(-1, 2)
         if len(p):
-            out[np.unique(_cells(p, width, height, grid))] += 1
+            out[np.unique(_cells(p, size, grid))] += 1
     return out.reshape(grid)

@@ -31,7 +31,7 @@ def rig_camera_projection(rig: RigResult, c: int, distance: float | None = None)
         return Rotation.from_rotvec(rv).as_matrix().reshape(-1, 3, 3), t
 
     d = float(np.median(np.linalg.norm(view_poses_of(rig.x)[1], axis=1))) if distance is None else distance
-    out = projection_uncertainty(camera_of, view_poses_of, rig.x, rig.covariance, cam.width, cam.height, d)
+    out = projection_uncertainty(camera_of, view_poses_of, rig.x, rig.covariance, cam.size, d)
     out.default_distance = distance is None
     return out
 

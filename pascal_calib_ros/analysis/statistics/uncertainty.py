@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ...geometry import grid_pixels, grid_shape
+from ...geometry import ImageSize, grid_pixels, grid_shape
 
 if TYPE_CHECKING:
     from ...calibrate import RefineResult
@@ -66,15 +66,16 @@ class ProjectionUncertainty:
 
 def projection_uncertainty(camera_of: Callable[[np.ndarray], Camera],
                            view_poses_of: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
-                           x: np.ndarray, cov: np.ndarray, width: int, height: int, distance: float,
+                           x: np.ndarray, cov: np.ndarray, size: ImageSize, distance: float,
                            step: float | None = None) -> ProjectionUncertainty:
     """mrcal's projection uncertainty (module docstring) on a grid of pixels.
 
     ``camera_of(x)`` is the camera of a parameter vector, ``view_poses_of(x)`` the views' poses
     (R (V, 3, 3) target -> camera, t (V, 3)); ``cov`` the parameters' covariance. An infinite
     ``distance`` projects directions: the rays are carried through the views' rotations only."""
+    width, height = size
     step = step or max(width, height) / 40.0
-    uv = grid_pixels(width, height, step)
+    uv = grid_pixels(size, step)
     cam = camera_of(x)
     rays = cam.unproject(uv)
     ok = np.all(np.isfinite(rays), 1)
@@ -97,7 +98,7 @@ def projection_uncertainty(camera_of: Callable[[np.ndarray], Camera],
     lam = np.linalg.eigvalsh(0.5 * (C + np.transpose(C, (0, 2, 1))))[:, -1]
     sigma = np.full(len(uv), np.nan)
     sigma[ok] = np.sqrt(np.maximum(lam, 0.0))
-    return ProjectionUncertainty(uv, sigma, float(distance), grid_shape(width, height, step))
+    return ProjectionUncertainty(uv, sigma, float(distance), grid_shape(size, step))
 
 
 def rotation_free_difference_variance(camera_of: Callable[[np.ndarray], Camera],
@@ -132,13 +133,13 @@ def rotation_displacements(camera: Camera, rays: np.ndarray, step: float = 1e-6)
                      np.arange(3))
 
 
-def projection_uncertainty_of(ref: RefineResult, width: int, height: int, distance: float | None = None
+def projection_uncertainty_of(ref: RefineResult, size: ImageSize, distance: float | None = None
                               ) -> ProjectionUncertainty:
     """:func:`projection_uncertainty` of a refinement at ``distance`` metres (default: the median
     distance from the camera to the observed target's centre, ``RefineResult.target_distance``;
     inf: at infinity)."""
     assert ref.x is not None and ref.covariance is not None
     d = ref.target_distance() if distance is None else distance
-    out = projection_uncertainty(ref.camera_of, ref.view_poses_of, ref.x, ref.covariance, width, height, d)
+    out = projection_uncertainty(ref.camera_of, ref.view_poses_of, ref.x, ref.covariance, size, d)
     out.default_distance = distance is None
     return out

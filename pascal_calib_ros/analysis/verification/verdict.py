@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ...calibrate import CalibrationOptions
-from ...detect import Detection
+from ...detect import Detection, DetectionRefusal
 from ...geometry import Transform
 from ...io import CalibrationRecord
 from ...targets import Target
@@ -73,7 +73,9 @@ def verify_calibration(dets: Sequence[Detection], target: Target, reference: Cal
     if hand_eye is not None and robot_poses is not None:
         from dataclasses import replace
 
-        dets = [d if p is not None or not d.ok else replace(d, reason="no robot pose for this view")
+        dets = [d if p is not None or not d.ok else replace(d, reason="no robot pose for this view",
+
+                                                               refusal=DetectionRefusal.NO_ROBOT_POSE)
                 for d, p in zip(dets, robot_poses, strict=True)]
     fv = fit_fresh_views(dets, target, reference.camera, options)
     warnings = []

@@ -60,7 +60,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ...detect import Detection
+from ...detect import Detection, DetectionRefusal
 from ...geometry import Transform
 from ...modes import HandEyeMode
 from ...targets import Target
@@ -108,7 +108,8 @@ def _checked(dets: list[Detection], robot_poses: Sequence[Transform | None], tex
         raise HandEyeError("the robot's pose sigmas must be positive")
     if he.arm_accuracy_problem():
         raise HandEyeError(he.arm_accuracy_problem())
-    dets = [d if p is not None or not d.ok else replace(d, reason="no robot pose for this view")
+    dets = [d if p is not None or not d.ok else replace(d, reason="no robot pose for this view",
+                                                           refusal=DetectionRefusal.NO_ROBOT_POSE)
             for d, p in zip(dets, robot_poses, strict=True)]
     check_robot_poses([p for d, p in zip(dets, robot_poses, strict=True) if d.ok and p is not None], mode)
     return he, dets

@@ -12,10 +12,10 @@ from ...detect import Detection
 from ...geometry import DISTORTION_CHOICES, Camera, CircularPointError, Transform
 from ...targets import Target
 from ..intrinsic.initial import pose_with_camera
-from ..intrinsic.options import CalibrationOptions
+from ..intrinsic.options import CalibrationOptions, observations
 from ..intrinsic.result import CalibrationResult, ViewReport
 from ..solver.lm import levenberg_marquardt
-from ..solver.observations import ViewData, observations
+from ..solver.observations import ViewData
 from ..solver.problem import Problem
 
 

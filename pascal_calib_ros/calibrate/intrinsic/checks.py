@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 
 from ...detect import Detection
-from ...geometry import Camera, LensModel, consistent_rays
+from ...geometry import Camera, ImageSize, LensModel, consistent_rays
 from ...targets import Target
 from ..solver.refine import RefineResult
 from .plumbline import equidistant_focal, has_straight_rows
@@ -54,7 +54,7 @@ class BeyondPinholeFieldError(CalibrationError):
     estimated independently of the fit (no other start changes it)."""
 
 
-def refuse_beyond_pinhole_field(usable: list[Detection], target: Target, lens: LensModel, w: int, h: int,
+def refuse_beyond_pinhole_field(usable: list[Detection], target: Target, lens: LensModel, size: ImageSize,
                                  fx: float, fisheye_field: Callable[[], float] | None = None) -> None:
     """A pinhole model (x = X/Z) cannot describe rays near or beyond 90 degrees, but fitted to a
     fisheye it may still reach a small RMS in one of several minima (which one was seen to change
@@ -70,6 +70,7 @@ def refuse_beyond_pinhole_field(usable: list[Detection], target: Target, lens: L
     points under the equidistant model *calibrated* on the views, theta = r (1 + k1 theta^2 + ...)
     / f with its f and coefficients fitted (it describes rays at and beyond 90 degrees, so a fisheye
     is still refused); NaN when that calibration fails (the generic estimate stands)."""
+    w, h = size
     if not any(d.edges for d in usable):
         return  # corners only: the fold check (check_model_fits) covers them
     pts = np.concatenate([e.points for d in usable for e in d.edges])
@@ -99,10 +100,11 @@ def refuse_beyond_pinhole_field(usable: list[Detection], target: Target, lens: L
 FOLD_REFUSE_FRACTION = 0.0005
 
 
-def check_model_fits(res: RefineResult, lens: LensModel, w: int, h: int) -> float:
+def check_model_fits(res: RefineResult, lens: LensModel, size: ImageSize) -> float:
     """A pinhole polynomial fitted to a lens wider than it can describe folds over: some observed
     edge points then have no ray (or not the one they came from). Refuse such a result and name
     the model to use, rather than publish a folded-over camera."""
+    w, h = size
     cam = Camera(res.K, res.D, w, h, lens.name)
     ok, _ = consistent_rays(cam, np.concatenate([np.r_[v.points, v.corners] for v in res.views]), 0.05)
     bad = float(np.mean(~ok))
@@ -118,7 +120,8 @@ def check_model_fits(res: RefineResult, lens: LensModel, w: int, h: int) -> floa
     return bad
 
 
-def check_result(res: RefineResult, w: int, h: int, warnings: list[str]) -> None:
+def check_result(res: RefineResult, size: ImageSize, warnings: list[str]) -> None:
+    w, h = size
     K = res.K
     if not (0 < K[0, 2] < w and 0 < K[1, 2] < h):
         raise CalibrationError(f"principal point ({K[0, 2]:.0f}, {K[1, 2]:.0f}) outside the image: the "

@@ -17,6 +17,7 @@ from ...geometry import (
     CircularPointError,
     Ellipse,
     IacSolution,
+    ImageSize,
     IndefiniteOmegaError,
     centre_image_from_ring,
     circular_point_pt2,
@@ -158,11 +159,11 @@ def intrinsics_closed_form(dets: list[Detection], target: Target, method: str, z
             failed[k] = str(exc)
     w, h = dets[0].width, dets[0].height
     try:
-        return iac_from_circular_points(pts, w, h, zero_skew), used, failed
+        return iac_from_circular_points(pts, ImageSize(w, h), zero_skew), used, failed
     except IndefiniteOmegaError:
         if not focal_only:
             raise
-        return iac_focal_only(pts, w, h), used, failed
+        return iac_focal_only(pts, ImageSize(w, h)), used, failed
 
 
 @dataclass(frozen=True)
@@ -321,7 +322,7 @@ def grid_homography_init(dets: list[Detection], target: Target, origin: tuple[fl
         H = fit_homography(np.array(src), np.array(dst))
         Hs.append(H)
         pts.append(H[:, 0] + 1j * H[:, 1])
-    sol = iac_from_circular_points(pts, dets[0].width, dets[0].height, zero_skew)
+    sol = iac_from_circular_points(pts, dets[0].size, zero_skew)
     Ki = np.linalg.inv(sol.K)
     poses: list[PlanePose | None] = []
     for Hv in Hs:

@@ -6,6 +6,7 @@ from dataclasses import dataclass, replace
 
 from ...detect import Detection
 from ...targets import Target
+from ..solver.observations import ViewData, view_data
 from ..solver.problem import DISTORTION_MODELS, SHAPE_NAMES
 from ..solver.refine import OUTLIER_K
 from .initial import (
@@ -100,3 +101,11 @@ def _rejection_summary(reports: list[ViewReport]) -> str:
     if not reasons:
         return ""
     return "Rejected: " + "; ".join(f"{n} x {why}" for why, n in sorted(reasons.items(), key=lambda x: -x[1]))
+
+
+def observations(det: Detection, target: Target, origin: tuple[float, float], opt: CalibrationOptions) -> ViewData:
+    """:func:`~..solver.observations.view_data` with the options' budget of points per edge and
+    per view."""
+    n_edges = max(len(det.edges), 1)
+    per_edge = max(8, min(opt.max_points_per_edge, opt.max_points_per_view // n_edges))
+    return view_data(det, target, origin, per_edge, opt.use_corners)

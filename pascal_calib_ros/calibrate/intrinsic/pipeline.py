@@ -12,9 +12,9 @@ from typing import Any
 import numpy as np
 
 from ...detect import Detection
-from ...geometry import DISTORTION_CHOICES, Camera, CircularPointError, DegenerateViewsError
+from ...geometry import DISTORTION_CHOICES, Camera, CircularPointError, DegenerateViewsError, ImageSize
 from ...targets import Target
-from ..solver.observations import ViewData, observations
+from ..solver.observations import ViewData
 from ..solver.problem import DISTORTION_MODELS, intrinsic_names, shape_frame_of
 from ..solver.refine import RefineResult, refine
 from .checks import (
@@ -30,7 +30,7 @@ from .initial import (
     pose_to_params,
     pose_with_camera,
 )
-from .options import LOSS_SCALES, CalibrationOptions, checked_options, checked_views
+from .options import LOSS_SCALES, CalibrationOptions, checked_options, checked_views, observations
 from .result import CalibrationError, CalibrationResult, ViewReport
 from .start import (
     RESTART_KAPPAS,
@@ -133,7 +133,7 @@ def restarted(dets: list[Detection], target: Target, options: CalibrationOptions
             continue
         if isinstance(first, Refined) and np.isfinite(first.res.rms):
             firsts.append((prep, first))
-    order = restart_order([(first.res, first.idx) for _, first in firsts], dets[0].width, dets[0].height)
+    order = restart_order([(first.res, first.idx) for _, first in firsts], dets[0].size)
     for i in order[:RESTART_FINISHES]:
         prep, first = firsts[i]
         try:
@@ -155,7 +155,7 @@ def first_refinement(dets: list[Detection], target: Target, prep: Prepared, kapp
     lens = DISTORTION_CHOICES[opt.distortion][0]
     if opt.method == "zhang":
         if not opt.refine:
-            return _zhang(dets, target, opt, reports, w, h)
+            return _zhang(dets, target, opt, reports, ImageSize(w, h))
         start = zhang_start(dets, usable, target, opt, reports)
     elif kappa is not None:
         start = division_start(dets, usable, target, opt, reports, kappa)
@@ -174,7 +174,7 @@ def first_refinement(dets: list[Detection], target: Target, prep: Prepared, kapp
     views, poses0, idx = start_poses(dets, start, target, opt, reports, target.local_origin, dof)
     if len(idx) < opt.min_views:
         raise CalibrationError(f"only {len(idx)} view(s) gave a pose; need {opt.min_views}")
-    D0 = start_distortion(dets, start, opt, lens.n, w, h)
+    D0 = start_distortion(dets, start, opt, lens.n, ImageSize(w, h))
     res = refine_prepared(views, start.sol.K, D0, poses0, dof, opt)
     return Refined(res, idx, start.sol.K, start.sol.degeneracy_ratio, list(start.warnings))
 
@@ -216,11 +216,11 @@ def finish(dets: list[Detection], target: Target, prep: Prepared, first: Refined
     if not np.all(np.isfinite(res.K)) or res.K[0, 0] <= 0 or res.K[1, 1] <= 0:
         raise CalibrationError("refinement diverged; check the target file matches the printed target")
     _report_views(res, idx, dets, reports)
-    check_result(res, w, h, warnings)
+    check_result(res, ImageSize(w, h), warnings)
     if not lens.wide:
-        refuse_beyond_pinhole_field([dets[k] for k in usable], target, lens, w, h, res.K[0, 0],
+        refuse_beyond_pinhole_field([dets[k] for k in usable], target, lens, ImageSize(w, h), res.K[0, 0],
                                     lambda: _fisheye_field(dets, usable, target, opt))
-    folded = check_model_fits(res, lens, w, h)
+    folded = check_model_fits(res, lens, ImageSize(w, h))
     if not lens.wide and res.rms > MISFIT_RMS:
         _refuse_if_fisheye_fits(dets, target, opt, res.rms)
     if folded > 0:
@@ -377,10 +377,11 @@ def _refuse_if_fisheye_fits(dets: list[Detection], target: Target, opt: Calibrat
                                "--distortion equidistant (node: distortion_model equidistant)")
 
 
-def _zhang(dets: list[Detection], target: Target, opt: CalibrationOptions, reports: list[ViewReport], w: int, h: int
+def _zhang(dets: list[Detection], target: Target, opt: CalibrationOptions, reports: list[ViewReport], size: ImageSize
            ) -> CalibrationResult:
     """OpenCV's answer as it stands (``--method zhang --no-refine``: the baseline), with its
     i.i.d. standard deviations and its corner residuals for the report."""
+    w, h = size
     try:
         z = calibrate_zhang(dets, target, opt.distortion)
     except DegenerateViewsError as exc:

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...errors import PascalCalibError
-from ...geometry import DISTORTION_CHOICES, Camera, observed_field_mask
+from ...geometry import DISTORTION_CHOICES, Camera, ImageSize, observed_field_mask
 from ..solver.refine import RefineResult
 
 
@@ -78,7 +78,7 @@ class CalibrationResult:
 
     def observed_field(self, margin: float = 0.0) -> np.ndarray:
         """(height, width) bool: the union of the used views' convex hulls of feature points."""
-        return observed_field_mask(self.feature_points(), self.width, self.height, margin)
+        return observed_field_mask(self.feature_points(), self.size, margin)
 
     @property
     def model(self) -> str:
@@ -97,3 +97,8 @@ class CalibrationResult:
     @property
     def n_used(self) -> int:
         return sum(v.used for v in self.views)
+
+    @property
+    def size(self) -> ImageSize:
+        """The image size (width, height)."""
+        return ImageSize(self.width, self.height)

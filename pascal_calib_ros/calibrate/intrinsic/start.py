@@ -15,10 +15,11 @@ from ...geometry import (
     CircularPointError,
     DegenerateViewsError,
     IacSolution,
+    ImageSize,
     IndefiniteOmegaError,
 )
 from ...targets import Target
-from ..solver.observations import ViewData, observations
+from ..solver.observations import ViewData
 from ..solver.problem import DISTORTION_MODELS, SHAPE_NAMES, Problem
 from ..solver.refine import RefineResult
 from .initial import (
@@ -28,7 +29,7 @@ from .initial import (
     pose_from_view,
     pose_to_params,
 )
-from .options import CalibrationOptions
+from .options import CalibrationOptions, observations
 from .plumbline import (
     division_parameter,
     equidistant_focal,
@@ -181,9 +182,10 @@ def start_poses(dets: list[Detection], start: ClosedFormStart, target: Target, o
     return views, poses0, idx
 
 
-def start_distortion(dets: list[Detection], start: ClosedFormStart, opt: CalibrationOptions, n: int, w: int,
-                      h: int) -> np.ndarray:
+def start_distortion(dets: list[Detection], start: ClosedFormStart, opt: CalibrationOptions, n: int, size: ImageSize
+                     ) -> np.ndarray:
     """The start's own D, zero, or k1 (k2) of the plumb-line division model when grids were straightened."""
+    w, h = size
     D0 = np.zeros(n)
     if start.D is not None:
         D0[: min(n, len(start.D))] = start.D[:n]
@@ -215,11 +217,12 @@ def view_costs(res: RefineResult) -> np.ndarray:
     return np.array([full.robust_cost(f[rows], p.loss_scale) for rows in full.rows_of_view])
 
 
-def corner_displacement(res: RefineResult, w: int, h: int) -> float:
+def corner_displacement(res: RefineResult, size: ImageSize) -> float:
     """How far (px) the fitted distortion moves the image corners, where a session's views rarely
     reach and the model extrapolates: max over the four corners p of |K x_u(p) - p|, x_u(p) the
     pinhole coordinates (x/z, y/z) of the ray the fitted camera sees at p; inf where it has none
     (the model folds over before the corner)."""
+    w, h = size
     cam = Camera(res.K, res.D, w, h, res.model)
     corners = np.array([[0.0, 0.0], [w, 0.0], [0.0, h], [w, h]])
     xu = cam.undistort_pixels(corners)
@@ -227,7 +230,7 @@ def corner_displacement(res: RefineResult, w: int, h: int) -> float:
     return float(np.max(d)) if np.all(np.isfinite(d)) else float("inf")
 
 
-def restart_order(fits: list[tuple[RefineResult, list[int]]], w: int, h: int) -> list[int]:
+def restart_order(fits: list[tuple[RefineResult, list[int]]], size: ImageSize) -> list[int]:
     """The order (indices into ``fits``: refinements with the session index of each of their
     views) in which restarted fits are tried, best first.
 
@@ -250,6 +253,6 @@ def restart_order(fits: list[tuple[RefineResult, list[int]]], w: int, h: int) ->
     res = fits[best][0]
     tol = 0.5 * RESTART_TIE_CHI2 * max(res.kappa) * res.rms**2
     tied = [i for i in range(len(fits)) if cost[i] - cost[best] <= tol]
-    shift = {i: float(np.round(corner_displacement(fits[i][0], w, h) / RESTART_TIE_ROUND_PX)) for i in tied}
+    shift = {i: float(np.round(corner_displacement(fits[i][0], size) / RESTART_TIE_ROUND_PX)) for i in tied}
     rest = [i for i in range(len(fits)) if i not in shift]
     return sorted(tied, key=lambda i: shift[i]) + sorted(rest, key=lambda i: cost[i])

@@ -23,11 +23,11 @@ from ...detect import Detection
 from ...geometry import CircularPointError
 from ...targets import Target
 from ..solver.lm import WARM_START, levenberg_marquardt
-from ..solver.observations import ViewData, observations
+from ..solver.observations import ViewData
 from ..solver.problem import Problem
 from ..solver.refine import RefineResult
 from .initial import pose_to_params, pose_with_camera
-from .options import LOSS_SCALES, CalibrationOptions
+from .options import LOSS_SCALES, CalibrationOptions, observations
 from .pipeline import Prepared, Refined, cold_calibration, finish, pose_dof, prepare, refine_prepared
 from .result import CalibrationError, CalibrationResult
 

@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 
 from ...detect import Detection
-from ...geometry import DegenerateViewsError
+from ...geometry import DegenerateViewsError, ImageSize
 from ...targets import Target
 from .initial import PlanePose
 
@@ -57,9 +57,9 @@ def calibrate_zhang(dets: list[Detection], target: Target, distortion: str = "pl
     cv2.setNumThreads(1)  # OpenCV's threads make its last bits (~1e-13) differ from run to run
     try:
         if distortion == "equidistant":
-            K, D, rms, rvecs, tvecs, std = _fisheye(obj, img, w, h)
+            K, D, rms, rvecs, tvecs, std = _fisheye(obj, img, ImageSize(w, h))
         else:
-            K, D, rms, rvecs, tvecs, std = _pinhole(obj, img, w, h, distortion)
+            K, D, rms, rvecs, tvecs, std = _pinhole(obj, img, ImageSize(w, h), distortion)
     finally:
         cv2.setNumThreads(threads)
     o = np.array([origin[0], origin[1], 0.0])
@@ -76,8 +76,9 @@ _FLAGS = {"plumb_bob": 0, "plumb_bob_k3_fixed": cv2.CALIB_FIX_K3,
           "rational_polynomial": cv2.CALIB_RATIONAL_MODEL}
 
 
-def _pinhole(obj: list[np.ndarray], img: list[np.ndarray], w: int, h: int, distortion: str
+def _pinhole(obj: list[np.ndarray], img: list[np.ndarray], size: ImageSize, distortion: str
              ) -> tuple[np.ndarray, np.ndarray, float, list[np.ndarray], list[np.ndarray], np.ndarray]:
+    w, h = size
     out = cv2.calibrateCameraExtended(obj, img, (w, h), None, None,  # type: ignore[call-overload]
                                       flags=_FLAGS[distortion])
     rms, K, D, rvecs, tvecs = out[0], out[1], out[2], out[3], out[4]
@@ -86,10 +87,11 @@ def _pinhole(obj: list[np.ndarray], img: list[np.ndarray], w: int, h: int, disto
     return K, np.asarray(D).ravel()[:n], float(rms), list(rvecs), list(tvecs), std
 
 
-def _fisheye(obj: list[np.ndarray], img: list[np.ndarray], w: int, h: int
+def _fisheye(obj: list[np.ndarray], img: list[np.ndarray], size: ImageSize
              ) -> tuple[np.ndarray, np.ndarray, float, list[np.ndarray], list[np.ndarray], np.ndarray]:
     """OpenCV's fisheye calibration (it needs an intrinsic guess to converge; no standard
     deviations: reported as NaN). Rays beyond about 87 degrees make it fail: say so."""
+    w, h = size
     K0 = np.array([[w / 3.0, 0, w / 2.0], [0, w / 3.0, h / 2.0], [0, 0, 1.0]])
     # OpenCV 5 names the fisheye flags in the cv2 namespace
     flags = cv2.CALIB_USE_INTRINSIC_GUESS | cv2.CALIB_RECOMPUTE_EXTRINSIC | cv2.CALIB_FIX_SKEW

@@ -34,12 +34,12 @@ from ...geometry import DISTORTION_CHOICES, CircularPointError, Transform, left_
 from ...targets import Target
 from ..handeye.labelling import relabelled, target_symmetries
 from ..handeye.view_poses import camera_pose, polished_pose, refined_poses
-from ..intrinsic.options import CalibrationOptions
+from ..intrinsic.options import CalibrationOptions, observations
 from ..intrinsic.pipeline import calibrate
 from ..intrinsic.result import CalibrationError, CalibrationResult, ViewReport
 from ..solver.covariance import row_variances, sandwich_covariance
 from ..solver.lm import LMResult, levenberg_marquardt
-from ..solver.observations import ViewData, observations
+from ..solver.observations import ViewData
 from ..solver.problem import Problem
 from .problem import RigProblem
 from .start import LabelMoves, RigStart, check_connected, rig_start

@@ -3,15 +3,11 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ...detect import Detection
 from ...targets import Target
-
-if TYPE_CHECKING:
-    from ..intrinsic.options import CalibrationOptions
 
 
 @dataclass
@@ -61,10 +57,3 @@ def view_data(det: Detection, target: Target, origin: tuple[float, float], max_p
         vd.corners = det.corners[ok]
         vd.corner_obj = target.board.corner_points()[ok] - np.array(origin)
     return vd
-
-
-def observations(det: Detection, target: Target, origin: tuple[float, float], opt: CalibrationOptions) -> ViewData:
-    """:func:`view_data` with the options' budget of points per edge and per view."""
-    n_edges = max(len(det.edges), 1)
-    per_edge = max(8, min(opt.max_points_per_edge, opt.max_points_per_view // n_edges))
-    return view_data(det, target, origin, per_edge, opt.use_corners)

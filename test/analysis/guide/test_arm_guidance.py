@@ -17,6 +17,7 @@ from pascal_calib_ros.analysis.guide.guidance import Linearisation, ViewPredicto
 from pascal_calib_ros.calibrate.handeye.options import HandEyeOptions
 from pascal_calib_ros.calibrate.handeye.session import calibrate_hand_eye
 from pascal_calib_ros.detect.target_detector import detect_target
+from pascal_calib_ros.geometry import ImageSize
 from pascal_calib_ros.sim.arm import ArmSpec, simulate_arm_session
 from pascal_calib_ros.targets import resolve_target
 
@@ -33,8 +34,8 @@ def arm_case():  # type: ignore[no-untyped-def]
                            he=HandEyeOptions(jackknife_groups=0))
     used = [k for k, v in enumerate(h.per_view) if v.used]
     poses = [s.robot_poses[k] for k in used]
-    noise = ViewPredictor(Linearisation.of_refinement(h.calibration.refinement), W, H).noise
-    return target, arm_model(h, poses, target, noise, W, H), poses
+    noise = ViewPredictor(Linearisation.of_refinement(h.calibration.refinement), ImageSize(W, H)).noise
+    return target, arm_model(h, poses, target, noise, ImageSize(W, H)), poses
 
 
 def test_candidates_include_the_latest_view_turned_about_the_optical_axis(arm_case) -> None:  # type: ignore[no-untyped-def]
@@ -74,8 +75,8 @@ def test_a_single_ring_has_a_gauge_the_prediction_leaves_out() -> None:
     dets = [detect_target(img, target) for img in s.images[target.name]]
     h = calibrate_hand_eye(dets, list(s.robot_poses), target, "eye_in_hand", he=HandEyeOptions(jackknife_groups=0))
     used = [k for k, v in enumerate(h.per_view) if v.used]
-    intrinsic = ViewPredictor(Linearisation.of_refinement(h.calibration.refinement), W, H)
-    model = arm_model(h, [s.robot_poses[k] for k in used], target, intrinsic.noise, W, H)
+    intrinsic = ViewPredictor(Linearisation.of_refinement(h.calibration.refinement), ImageSize(W, H))
+    model = arm_model(h, [s.robot_poses[k] for k in used], target, intrinsic.noise, ImageSize(W, H))
     now, joint = intrinsic.sigma_now(), model.predictor.sigma_now()
     assert 0.5 * now < joint <= 1.01 * now
     sug = suggest_arm_views(model, target, TrustRegion(tuple(s.robot_poses[k] for k in used)), n=3)

@@ -19,6 +19,7 @@ from pascal_calib_ros.analysis.guide.candidates import (
 )
 from pascal_calib_ros.detect.detection import DetectionParams
 from pascal_calib_ros.detect.target_detector import detect_target
+from pascal_calib_ros.geometry import ImageSize
 from pascal_calib_ros.geometry.camera import Camera
 from pascal_calib_ros.sim.render import Pose, SensorModel, render_view
 from pascal_calib_ros.targets import resolve_target
@@ -79,9 +80,9 @@ def test_a_view_behind_the_camera_has_no_shape() -> None:
 
 def test_contour_scale_follows_the_detectors_downscaling() -> None:
     params = DetectionParams()
-    assert contour_scale(1280, 720, params) == 1
-    assert contour_scale(1600, 1200, params) == 2
-    assert contour_scale(2592, 1944, params) == 4
+    assert contour_scale(ImageSize(1280, 720), params) == 1
+    assert contour_scale(ImageSize(1600, 1200), params) == 2
+    assert contour_scale(ImageSize(2592, 1944), params) == 4
 
 
 @pytest.mark.parametrize(("name", "kinds"), [("ring_a4", [0, 1]), ("ring_grid_a4", [3, 1] * 4)])

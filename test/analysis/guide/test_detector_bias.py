@@ -20,6 +20,7 @@ from pascal_calib_ros.calibrate.handeye.session import calibrate_hand_eye
 from pascal_calib_ros.calibrate.intrinsic.options import CalibrationOptions
 from pascal_calib_ros.calibrate.solver.observations import ViewData
 from pascal_calib_ros.detect.target_detector import detect_target
+from pascal_calib_ros.geometry import ImageSize
 from pascal_calib_ros.sim.arm import ArmSpec, simulate_arm_session
 from pascal_calib_ros.targets import resolve_target
 
@@ -36,7 +37,7 @@ def arm_case():  # type: ignore[no-untyped-def]
     h = calibrate_hand_eye(dets, list(s.robot_poses), target, "eye_in_hand", he=HandEyeOptions(jackknife_groups=0))
     used = [k for k, v in enumerate(h.per_view) if v.used]
     poses = [s.robot_poses[k] for k in used]
-    noise = ViewPredictor(Linearisation.of_refinement(h.calibration.refinement), W, H).noise
+    noise = ViewPredictor(Linearisation.of_refinement(h.calibration.refinement), ImageSize(W, H)).noise
     return target, h, poses, noise
 
 
@@ -79,9 +80,9 @@ def test_without_bias_the_biased_predictor_is_the_plain_one(arm_case) -> None:  
     """Zero sigmas: the same covariance now and after each candidate as
     :class:`.guidance.ViewPredictor` (the update's algebra is the same)."""
     target, h, poses, noise = arm_case
-    model = arm_model(h, poses, target, noise, W, H, bias=NO_BIAS)
+    model = arm_model(h, poses, target, noise, ImageSize(W, H), bias=NO_BIAS)
     assert isinstance(model.predictor, BiasedPredictor)
-    plain = ViewPredictor(model.predictor.lin, W, H)
+    plain = ViewPredictor(model.predictor.lin, ImageSize(W, H))
     np.testing.assert_allclose(model.predictor.cov_now, plain.cov_now, rtol=1e-8, atol=1e-20)
     cams, tools = _candidates(target, model, poses)
     chain = chain_rows(model, tools)
@@ -95,11 +96,11 @@ def test_the_bias_adds_to_the_hand_eye_sigma_now_and_after_a_view(arm_case) -> N
     every candidate, with the views' biases independent (rho 0) or correlated (rho 0.6; the
     common share may then cancel some of the rest: no order between the two)."""
     target, h, poses, noise = arm_case
-    base = arm_model(h, poses, target, noise, W, H, bias=NO_BIAS)
+    base = arm_model(h, poses, target, noise, ImageSize(W, H), bias=NO_BIAS)
     cams, tools = _candidates(target, base, poses)
     figures = []
     for b in (NO_BIAS, DetectorBias(rho=0.0), DetectorBias(rho=0.6)):
-        m = arm_model(h, poses, target, noise, W, H, bias=b)
+        m = arm_model(h, poses, target, noise, ImageSize(W, H), bias=b)
         p = predict_poses(m.predictor, target, cams, CalibrationOptions(), chain=chain_rows(m, tools))
         figures.append((hand_eye_sigmas(m, m.predictor.cov_now), hand_eye_sigmas(m, p.readout_cov)))
     (n0, c0), (n1, c1), (n2, c2) = figures
@@ -116,8 +117,8 @@ def test_the_model_takes_kappa_out_of_the_image_rows_only_when_asked(arm_case) -
     target, h, poses, noise = arm_case
     kappa = h.calibration.refinement.kappa[0]
     assert kappa > 1.2
-    honest = arm_model(h, poses, target, noise, W, H, bias=DETECTOR_BIAS, keep_kappa=False)
-    shipped = arm_model(h, poses, target, noise, W, H)
+    honest = arm_model(h, poses, target, noise, ImageSize(W, H), bias=DETECTOR_BIAS, keep_kappa=False)
+    shipped = arm_model(h, poses, target, noise, ImageSize(W, H))
     assert honest.kappa == pytest.approx(kappa) and shipped.kappa == 1.0
     assert isinstance(honest.predictor, BiasedPredictor) and not isinstance(shipped.predictor, BiasedPredictor)
     n_edge = shipped.problem.n_edge

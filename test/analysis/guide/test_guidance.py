@@ -23,6 +23,7 @@ from pascal_calib_ros.calibrate.intrinsic.pipeline import calibrate
 from pascal_calib_ros.calibrate.solver.covariance import sandwich_covariance
 from pascal_calib_ros.calibrate.solver.problem import camera_from_intrinsics
 from pascal_calib_ros.detect.target_detector import detect_target
+from pascal_calib_ros.geometry import ImageSize
 from pascal_calib_ros.geometry.camera import Camera
 from pascal_calib_ros.sim.render import Pose, SensorModel, random_poses, render_view
 from pascal_calib_ros.sim.session import SessionSpec, render_session_views
@@ -42,8 +43,8 @@ def small_session(ring_target: Target):
 
 def test_analytic_sigma_equals_numerical_projection_uncertainty(small_session) -> None:
     _, _, res = small_session
-    pred = ViewPredictor(Linearisation.of_refinement(res.refinement), W, H)
-    numeric = float(np.nanmax(projection_uncertainty_of(res.refinement, res.width, res.height).sigma))
+    pred = ViewPredictor(Linearisation.of_refinement(res.refinement), ImageSize(W, H))
+    numeric = float(np.nanmax(projection_uncertainty_of(res.refinement, res.size).sigma))
     assert pred.sigma_now() == pytest.approx(numeric, rel=1e-4)
 
 
@@ -53,7 +54,7 @@ def test_one_more_view_equals_the_appended_problem(small_session, ring_target: T
     _, _, res = small_session
     r = res.refinement
     lin = Linearisation.of_refinement(r)
-    pred = ViewPredictor(lin, W, H)
+    pred = ViewPredictor(lin, ImageSize(W, H))
     poses = random_poses(ring_target, pred.camera_sized, 2, np.random.default_rng(4))
     from pascal_calib_ros.geometry.transform import Transform
 
@@ -82,7 +83,7 @@ def test_one_more_view_equals_the_appended_problem(small_session, ring_target: T
             return Rs, ts
 
         d = float(np.median(centre_distances(cp, cp.unpack(x, r.intr0)[2])))
-        brute = projection_uncertainty(cam_of, poses_of, x, cov, W, H, d)
+        brute = projection_uncertainty(cam_of, poses_of, x, cov, ImageSize(W, H), d)
         assert P.distance[k] == pytest.approx(d, rel=1e-9)
         assert P.sigma_px[k] == pytest.approx(float(np.nanmax(brute.sigma)), rel=1e-3)
 
@@ -92,28 +93,28 @@ def test_prediction_matches_rendering_detecting_and_recalibrating(small_session,
     whole calibration redone: the real worst projection sigma over the image within 25 % of the
     predicted one (measured: within 7 % on this session), and far below the sigma before."""
     cam, dets, res = small_session
-    s = suggest_views(res.refinement, ring_target, W, H, n=2)
+    s = suggest_views(res.refinement, ring_target, ImageSize(W, H), n=2)
     assert len(s.suggestions) == 2
     for k, r in enumerate(s.suggestions):
         img = render_view(ring_target, cam, Pose(r.pose.R, r.pose.translation), SensorModel(seed=50 + k)).image
         det = detect_target(img, ring_target)
         assert det.ok, det.reason
         res2 = calibrate([*dets, det], ring_target)
-        real = ViewPredictor(Linearisation.of_refinement(res2.refinement), W, H).sigma_now()
+        real = ViewPredictor(Linearisation.of_refinement(res2.refinement), ImageSize(W, H)).sigma_now()
         assert real == pytest.approx(r.predicted_sigma_px, rel=0.25)
         assert real < 0.5 * s.sigma_px
 
 
 def test_suggestions_are_ranked_and_distinct(small_session, ring_target: Target) -> None:
     _, _, res = small_session
-    s = suggest_views(res.refinement, ring_target, W, H, n=4)
+    s = suggest_views(res.refinement, ring_target, ImageSize(W, H), n=4)
     sig = [r.predicted_sigma_px for r in s.suggestions]
     assert sig == sorted(sig)
     assert all(v < s.sigma_px for v in sig)
     assert len(s.suggestions) == 4
     for i, a in enumerate(s.suggestions):
         for b in s.suggestions[:i]:  # a skipped suggestion leaves a real alternative
-            assert distinct(a.placement, b.placement, W, H)
+            assert distinct(a.placement, b.placement, ImageSize(W, H))
 
 
 def test_distinct_counts_a_roll_only_when_asked() -> None:
@@ -124,10 +125,11 @@ def test_distinct_counts_a_roll_only_when_asked() -> None:
 
     a = Placement((400.0, 300.0), 0.5, 35.0, 45.0, 10.0)
     turned = Placement((400.0, 300.0), 0.5, 35.0, 45.0, 10.0 + 90.0)
-    assert not distinct(a, turned, W, H)
-    assert distinct(a, turned, W, H, roll_deg=20.0)
-    assert not distinct(a, Placement((400.0, 300.0), 0.5, 35.0, 45.0, 25.0), W, H, roll_deg=20.0)
-    assert not distinct(a, Placement((400.0, 300.0), 0.5, 35.0, 45.0, 355.0), W, H, roll_deg=20.0)  # 15 deg apart
+    assert not distinct(a, turned, ImageSize(W, H))
+    assert distinct(a, turned, ImageSize(W, H), roll_deg=20.0)
+    assert not distinct(a, Placement((400.0, 300.0), 0.5, 35.0, 45.0, 25.0), ImageSize(W, H), roll_deg=20.0)
+    assert not distinct(a, Placement((400.0, 300.0), 0.5, 35.0, 45.0, 355.0), ImageSize(W, H),
+                        roll_deg=20.0)  # 15 deg apart
 
 
 def test_noise_model_recovers_a_power_law_of_the_imaged_size() -> None:

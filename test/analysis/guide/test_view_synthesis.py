@@ -9,6 +9,7 @@ import pytest
 from pascal_calib_ros.analysis.guide.candidates import Placement, place_all
 from pascal_calib_ros.analysis.guide.view_ranking import distinct, distinct_from_all
 from pascal_calib_ros.analysis.guide.view_synthesis import synthesise_view, synthesise_views
+from pascal_calib_ros.geometry import ImageSize
 from pascal_calib_ros.geometry.camera import Camera
 from pascal_calib_ros.targets import resolve_target
 
@@ -61,7 +62,7 @@ def test_distinct_from_all_is_distinct_pairwise() -> None:
 
     a, b = random(200), random(6)
     for roll in (0.0, 20.0):
-        got = distinct_from_all(a, b, 640, 480, roll)
-        want = [all(distinct(p, q, 640, 480, roll) for q in b) for p in a]
+        got = distinct_from_all(a, b, ImageSize(640, 480), roll)
+        want = [all(distinct(p, q, ImageSize(640, 480), roll) for q in b) for p in a]
         assert got.tolist() == want
         assert 0 < sum(want) < len(want)

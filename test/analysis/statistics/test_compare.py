@@ -24,13 +24,12 @@ from scipy.spatial.transform import Rotation
 
 from pascal_calib_ros.analysis.statistics.compare import (
     CompareError,
-    camera_from_yaml,
     projection_difference,
     region_from_report,
 )
 from pascal_calib_ros.errors import PascalCalibError
 from pascal_calib_ros.geometry.camera import Camera
-from pascal_calib_ros.io.camera_yaml import CameraInfoData, write_camera_yaml
+from pascal_calib_ros.io import CalibrationRecord, camera_info_of, read_calibration_file, write_camera_yaml
 
 F = 550.0
 PLUMB = Camera.from_params(F, F, 400.0, 300.0, dist=[-0.2, 0.05, 0.0, 0.0, 0.0], width=800, height=600)
@@ -199,12 +198,12 @@ def run(*args: str) -> subprocess.CompletedProcess:
 
 
 def write_yaml(path: Path, cam: Camera) -> Path:
-    return write_camera_yaml(path, CameraInfoData(cam.width, cam.height, "cam", cam.K, cam.D, cam.model))
+    return write_camera_yaml(path, camera_info_of(CalibrationRecord(cam, "cam")))
 
 
 def test_cli_diff(tmp_path: Path) -> None:
     a, b = write_yaml(tmp_path / "a.yaml", PLUMB), write_yaml(tmp_path / "b.yaml", changed(PLUMB, dcx=3.0))
-    assert camera_from_yaml(b).K[0, 2] == 403.0
+    assert read_calibration_file(b).camera.K[0, 2] == 403.0
     expected = projection_difference(PLUMB, changed(PLUMB, dcx=3.0))
     report = write_report_json(tmp_path / "report.json")
     png = tmp_path / "plots" / "diff.png"

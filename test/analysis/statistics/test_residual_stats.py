@@ -12,6 +12,7 @@ from pascal_calib_ros.analysis.statistics.residual_stats import (
     residual_samples,
     views_per_region,
 )
+from pascal_calib_ros.geometry import ImageSize
 
 W, H = 800, 600
 
@@ -30,7 +31,7 @@ def _circles(rng: np.random.Generator, n_views: int = 10, per_view: int = 30, n_
 
 def _verdict(pts: list[np.ndarray], ids: list[np.ndarray], res: list[np.ndarray], kappa: float = 1.0):
     s = residual_samples(pts, res, ids, kappa=(kappa, 1.0))
-    return model_bias(regional(s, W, H), radial(s, (W / 2, H / 2)), W, H, "plumb_bob")
+    return model_bias(regional(s, ImageSize(W, H)), radial(s, (W / 2, H / 2)), ImageSize(W, H), "plumb_bob")
 
 
 def test_contour_normals_point_outwards_along_the_radius() -> None:
@@ -92,10 +93,10 @@ def test_a_bias_below_the_floor_or_hidden_in_correlated_noise_is_not_called() ->
 def test_regional_mean_and_counts() -> None:
     pts = [np.array([[10.0, 10.0], [20.0, 20.0], [790.0, 590.0]])]
     vec = residual_samples(pts, [np.zeros(3)], [np.zeros(3, int)], [np.zeros((0, 2))], [np.zeros((0, 2))])
-    reg = regional(vec, W, H)
-    assert reg.grid == region_grid(W, H) == (6, 8)
+    reg = regional(vec, ImageSize(W, H))
+    assert reg.grid == region_grid(ImageSize(W, H)) == (6, 8)
     assert reg.count[0] == 2 and reg.count[-1] == 1 and reg.count.sum() == 3
-    counts = views_per_region([pts[0], pts[0][:1]], W, H)
+    counts = views_per_region([pts[0], pts[0][:1]], ImageSize(W, H))
     assert counts[0, 0] == 2 and counts[-1, -1] == 1 and counts.sum() == 3
 
 

@@ -15,10 +15,11 @@ from pascal_calib_ros.analysis.statistics.uncertainty import (
     rotation_displacements,
     rotation_free_difference_variance,
 )
-from pascal_calib_ros.calibrate import pipeline
+from pascal_calib_ros.calibrate.intrinsic import pipeline
 from pascal_calib_ros.calibrate.intrinsic.pipeline import calibrate
 from pascal_calib_ros.calibrate.solver.covariance import lag_factor
 from pascal_calib_ros.detect.detection import Detection
+from pascal_calib_ros.geometry import ImageSize
 from pascal_calib_ros.geometry.camera import Camera
 from pascal_calib_ros.report.text import projection_line
 from pascal_calib_ros.targets import Target
@@ -79,7 +80,7 @@ def test_projection_uncertainty_of_known_covariances(ring_target: Target, ring_s
         cov = np.zeros((n, n))
         k = free.index(idx)
         cov[k, k] = 0.04  # std 0.2
-        pu = projection_uncertainty_of(replace(r, covariance=cov), 800, 600, 0.5)
+        pu = projection_uncertainty_of(replace(r, covariance=cov), ImageSize(800, 600), 0.5)
         ok = np.isfinite(pu.sigma)
         assert ok.mean() > 0.9
         if name == "cx":
@@ -90,7 +91,7 @@ def test_projection_uncertainty_of_known_covariances(ring_target: Target, ring_s
             # distortion makes x/z differ a little from (u - cx) / fx away from the centre
             near = np.hypot(pu.pixels[ok, 0] - K[0, 2], pu.pixels[ok, 1] - K[1, 2]) < 150
             np.testing.assert_allclose(pu.sigma[ok][near], expect[near], atol=2e-3)
-    zero = projection_uncertainty_of(replace(r, covariance=np.zeros((n, n))), 800, 600, 0.5)
+    zero = projection_uncertainty_of(replace(r, covariance=np.zeros((n, n))), ImageSize(800, 600), 0.5)
     assert np.nanmax(zero.sigma) == 0.0
 
 

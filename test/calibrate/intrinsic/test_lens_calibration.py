@@ -9,6 +9,7 @@ from conftest import FISHEYE_SPEC, _session
 from pascal_calib_ros.calibrate.intrinsic.options import CalibrationOptions
 from pascal_calib_ros.calibrate.intrinsic.pipeline import calibrate
 from pascal_calib_ros.calibrate.intrinsic.result import CalibrationError
+from pascal_calib_ros.geometry import ImageSize
 from pascal_calib_ros.geometry.camera import calibration_errors
 from pascal_calib_ros.geometry.image_field import observed_field_mask
 from pascal_calib_ros.sim.session import SessionSpec
@@ -41,7 +42,7 @@ def test_rational_wide_angle_grid() -> None:
     cam, _, dets = _session(resolve_target("ring_grid_a4"), spec)
     res = calibrate(dets, resolve_target("ring_grid_a4"), CalibrationOptions(distortion="rational_polynomial"))
     assert res.model == "rational_polynomial" and len(res.D) == 8
-    field = observed_field_mask(res.edge_points, 640, 480)
+    field = observed_field_mask(res.edge_points, ImageSize(640, 480))
     err = calibration_errors(cam, res.K, res.D, res.model, mask=field)
     assert abs(err["fx_err_pct"]) < 0.1 and err["pp_err_px"] < 1.0 and err["model_err_px"] < 0.3
 

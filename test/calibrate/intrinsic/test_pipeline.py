@@ -38,7 +38,7 @@ def test_ring_calibration_with_strong_distortion_and_jpeg(ring_target: Target, r
     fx, fy, pp = _errors(cam, res.K)
     assert fx < 1e-3 and fy < 1e-3 and pp < 1.0, (fx, fy, pp)
     assert abs(res.D[0] - cam.D[0]) < 0.01
-    assert model_error(cam, Camera(res.K, res.D), cam.width, cam.height) < 1.5
+    assert model_error(cam, Camera(res.K, res.D), cam.size) < 1.5
 
 
 def test_edge_offset_is_what_removes_the_gamma_bias(ring_target: Target, ring_session) -> None:
@@ -202,7 +202,7 @@ def test_charuco_with_partial_views_meets_the_accuracy_goal(charuco_session) -> 
     assert res.method == "zhang" and all(res.views[k].used for k, d in enumerate(dets) if d.ok)
     fx, fy, pp = _errors(cam, res.K)
     assert fx < 5e-4 and fy < 5e-4 and pp < 0.8, (fx, fy, pp)
-    ours = model_error(cam, res.camera(), cam.width, cam.height)
+    ours = model_error(cam, res.camera(), cam.size)
     from pascal_calib_ros.studies.boards_study import opencv_charuco
 
     theirs = opencv_charuco(target.board, imgs, cam)  # type: ignore[arg-type]
@@ -215,4 +215,4 @@ def test_aprilgrid_through_a_fisheye_beyond_what_opencv_calibrates(aprilgrid_fis
     res = calibrate(dets, resolve_target("aprilgrid_a3"), CalibrationOptions(distortion="equidistant"))
     fx, fy, pp = _errors(cam, res.K)
     assert res.n_used >= 10 and fx < 8e-4 and fy < 8e-4 and pp < 0.5, (res.n_used, fx, fy, pp)
-    assert model_error(cam, res.camera(), cam.width, cam.height, mask=res.observed_field()) < 0.3
+    assert model_error(cam, res.camera(), cam.size, mask=res.observed_field()) < 0.3

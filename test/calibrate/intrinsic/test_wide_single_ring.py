@@ -14,6 +14,7 @@ from pascal_calib_ros.calibrate.intrinsic.pipeline import calibrate, first_refin
 from pascal_calib_ros.calibrate.intrinsic.result import CalibrationError
 from pascal_calib_ros.detect.detection import Detection, DetectionParams
 from pascal_calib_ros.detect.target_detector import detect_target
+from pascal_calib_ros.geometry import ImageSize
 from pascal_calib_ros.geometry.camera import Camera, calibration_errors
 from pascal_calib_ros.geometry.iac import IndefiniteOmegaError, iac_focal_only
 from pascal_calib_ros.geometry.lens import DISTORTION_CHOICES
@@ -52,7 +53,7 @@ def test_single_ring_field_estimate_is_checked_with_a_calibrated_fisheye() -> No
     cam, dets = _wide_session(12, (0.1, 0.9))
     usable = [d for d in dets if d.ok]
     with pytest.raises(CalibrationError, match="degrees from the optical axis"):
-        refuse_beyond_pinhole_field(usable, TARGET, DISTORTION_CHOICES["plumb_bob"][0], 640, 360, 320.0)
+        refuse_beyond_pinhole_field(usable, TARGET, DISTORTION_CHOICES["plumb_bob"][0], ImageSize(640, 360), 320.0)
     res = calibrate(dets, TARGET)
     err = calibration_errors(cam, res.K, res.D, res.model)
     assert res.n_used == len(usable)
@@ -69,7 +70,7 @@ def test_focal_only_iac() -> None:
         A = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
         R = np.eye(3) + np.sin(ang) * A + (1 - np.cos(ang)) * A @ A
         pts.append(K @ (R[:, 0] + 1j * R[:, 1]))  # image of the plane's circular point (1, i, 0)
-    sol = iac_focal_only(pts, w, h)
+    sol = iac_focal_only(pts, ImageSize(w, h))
     assert abs(sol.K[0, 0] - f) < 1e-6 and abs(sol.K[1, 1] - f) < 1e-6
     with pytest.raises(IndefiniteOmegaError):
-        iac_focal_only([np.array([1.0, 1j, 1.0])], w, h)  # x^2 + y^2 = 0: f^2 = -1
+        iac_focal_only([np.array([1.0, 1j, 1.0])], ImageSize(w, h))  # x^2 + y^2 = 0: f^2 = -1

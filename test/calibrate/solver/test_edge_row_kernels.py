@@ -102,7 +102,7 @@ def test_rays_from_the_last_camera_are_the_rays_from_scratch() -> None:
 def test_one_compiled_version_of_each_kernel() -> None:
     """numba compiles a kernel once per argument type: the problem passes one set of types, the
     one ``compile_all`` (make venv) builds, also from float32 observations."""
-    from pascal_calib_ros.calibrate import edge_row_kernels as K
+    from pascal_calib_ros.calibrate.solver import edge_row_kernels as K
 
     K.compile_all()
     views, poses, intr0 = _views("plumb_bob", 6, 4)
