@@ -302,7 +302,7 @@ def _guided_next(h: HandEyeResult | None, tools: list[Transform], target: Target
                           ranking=guide.ranking)
     kept = s.suggestions
     if refused and kept:
-        new = distinct_from_all([a.view.placement for a in kept], refused, spec.width, spec.height, DISTINCT_ROLL_DEG)
+        new = distinct_from_all([a.view.placement for a in kept], refused, spec.size, DISTINCT_ROLL_DEG)
         kept = [a for a, keep in zip(kept, new, strict=True) if keep]
     return kept[0] if kept else None
 
