@@ -1,7 +1,16 @@
 """What a calibration is worth: projection uncertainty (mrcal's), residual statistics and the
 model-bias verdict, cross-validation of two halves, the projection difference of two cameras."""
 
-from .guide.arm_guidance import DISTINCT_ROLL_DEG, ArmGoals, TrustRegion, arm_model, suggest_arm_views
+from .guide.arm_guidance import (
+    DISTINCT_ROLL_DEG,
+    ArmGoals,
+    ArmRanking,
+    ArmSuggestion,
+    TrustRegion,
+    arm_model,
+    orientation_spread,
+    suggest_arm_views,
+)
 from .guide.candidates import (
     Feasibility,
     Placement,
@@ -13,7 +22,7 @@ from .guide.candidates import (
     outline_points,
     place,
 )
-from .guide.detector_bias import DetectorBias
+from .guide.detector_bias import DETECTOR_BIAS, DetectorBias
 from .guide.guidance import Linearisation, ViewPredictor
 from .guide.view_ranking import RankedView, distinct_from_all, suggest_views
 from .refits.refit import DEFAULT_MAX_ERROR_PX, RefitError, RefitResult, refit_camera
@@ -47,14 +56,15 @@ from .verification.hand_eye import HandEyeReference
 from .verification.intrinsics import DEFAULT_ALPHA
 from .verification.verdict import CHANGED, Verification, verify_calibration
 
-__all__ = ["CHANGED", "CHOICE", "DEFAULT_ALPHA", "DEFAULT_MAX_ERROR_PX", "DISTINCT_ROLL_DEG", "MIN_EFFECTIVE",
-           "RADIAL_FLOOR_PX", "REGIONAL_FLOOR_PX", "ArmGoals", "Assessment", "CompareError", "CrossValidation",
-           "DetectorBias", "Feasibility", "HandEyeReference", "Linearisation", "ModelBias", "Placement",
-           "ProjectionDiff", "ProjectionUncertainty", "Radial", "RankedView", "RefitError", "RefitResult", "Regional",
-           "ResidualSamples", "TrustRegion", "Verification", "VerifyError", "ViewPredictor", "arm_model", "assess",
-           "assess_rig", "bootstrap_placements", "cross_validate", "default_feasibility", "difference_share",
-           "distance_for_size", "distinct_from_all", "epipolar_rms", "epipolar_samples", "feasibility_problem",
-           "feature_centre", "model_bias", "model_bias_of", "outline_points", "place", "projection_difference",
-           "projection_uncertainty", "projection_uncertainty_of", "radial", "refit_camera", "refit_splined",
-           "region_from_report", "regional", "residual_samples_of", "rotation_displacements", "suggest_arm_views",
-           "suggest_views", "verify_calibration", "views_per_region"]
+__all__ = ["CHANGED", "CHOICE", "DEFAULT_ALPHA", "DEFAULT_MAX_ERROR_PX", "DETECTOR_BIAS", "DISTINCT_ROLL_DEG",
+           "MIN_EFFECTIVE", "RADIAL_FLOOR_PX", "REGIONAL_FLOOR_PX", "ArmGoals", "ArmRanking", "ArmSuggestion",
+           "Assessment", "CompareError", "CrossValidation", "DetectorBias", "Feasibility", "HandEyeReference",
+           "Linearisation", "ModelBias", "Placement", "ProjectionDiff", "ProjectionUncertainty", "Radial", "RankedView",
+           "RefitError", "RefitResult", "Regional", "ResidualSamples", "TrustRegion", "Verification", "VerifyError",
+           "ViewPredictor", "arm_model", "assess", "assess_rig", "bootstrap_placements", "cross_validate",
+           "default_feasibility", "difference_share", "distance_for_size", "distinct_from_all", "epipolar_rms",
+           "epipolar_samples", "feasibility_problem", "feature_centre", "model_bias", "model_bias_of",
+           "orientation_spread", "outline_points", "place", "projection_difference", "projection_uncertainty",
+           "projection_uncertainty_of", "radial", "refit_camera", "refit_splined", "region_from_report", "regional",
+           "residual_samples_of", "rotation_displacements", "suggest_arm_views", "suggest_views", "verify_calibration",
+           "views_per_region"]

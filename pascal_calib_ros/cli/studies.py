@@ -42,6 +42,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="handeye: amplitude of the arm's systematic position error field (0: random arm noise only)")
     s.add_argument("--seeds", type=int, default=None, help="guided: sessions per case and strategy (default 20); "
                                                            "undesigned: sessions, seeds 1..N (default 3)")
+    s.add_argument("--arm-cell", default="study", choices=["study", "arm"],
+                   help="guided, arm case: the cell's noise (study: sensor noise 1.5, arm 0.01 deg / 0.1 mm; arm: "
+                        "0.5, 0.03 deg / 0.3 mm, the arm's share dominant)")
+    s.add_argument("--arm-guide", default="shipped",
+                   choices=["shipped", "narrow", "bias", "bias-no-kappa", "spread", "wide", "wide-spread"],
+                   help="guided, arm case: the guide's variant (docs/guided-sessions.md, issue 36)")
     s.add_argument("--quick", action="store_true", help="guided: 640x480 renders")
     s.add_argument("--jobs", type=int, default=2, help="guided: sessions run in parallel")
     s.add_argument("--out", default="out/study")
@@ -70,7 +76,7 @@ def cmd_study(args: argparse.Namespace) -> int:
         from ..studies import run_guided_study
 
         run_guided_study(Path(args.out), seeds=args.seeds or 20, quick=args.quick, only=args.only, jobs=args.jobs,
-                         draws=args.draws or 0)
+                         draws=args.draws or 0, arm=(args.arm_cell, args.arm_guide))
         return EXIT_OK
     if args.name == "trust":
         from ..studies import trust

@@ -6,7 +6,9 @@ Strategies (the tool pose commanded; the arm reaches it and reports it with its 
 
 - ``guided``: the first three views of ``designed``, then the guide's best tool pose
   (:func:`..analysis.arm_guidance.suggest_arm_views`, a trust region of 0.3 m and 120 degrees
-  around the visited poses);
+  around the visited poses; a suggested view the detector refuses is not asked for again, as the
+  node's ``avoid``); :data:`GUIDE_VARIANTS` are the guide's variants of issue 36 and
+  :data:`ARM_CELLS` the cells (``pascal-calib study guided --arm-guide``, ``--arm-cell``);
 - ``designed``: 20 views laid out on purpose: the target's centre on a 3 x 3 grid of the image,
   tilted 35 degrees about eight evenly spread axes, rolled about the optical axis by the golden
   angle from view to view (every motion's rotation axis different); ``designed`` at N is this
@@ -43,7 +45,11 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from ..analysis import (
+    DETECTOR_BIAS,
+    DISTINCT_ROLL_DEG,
     ArmGoals,
+    ArmRanking,
+    ArmSuggestion,
     DetectorBias,
     Linearisation,
     Placement,
@@ -51,6 +57,7 @@ from ..analysis import (
     ViewPredictor,
     arm_model,
     distance_for_size,
+    distinct_from_all,
     place,
     suggest_arm_views,
 )
@@ -98,11 +105,25 @@ class CellNoise:
 class GuideModel:
     """How the guide's model treats the images (:func:`..analysis.arm_guidance.arm_model`): the
     detector's bias (None: none) and whether the image rows keep the refinement's kappa. The
-    default is the shipped guide; issue 36's variants are e.g. ``GuideModel(DETECTOR_BIAS)``
-    (kappa kept, the bias added) and ``GuideModel(DETECTOR_BIAS, False)`` (kappa out)."""
+    default is the shipped guide; issue 36's variants are :data:`GUIDE_VARIANTS`, e.g.
+    ``GuideModel(DETECTOR_BIAS)`` (kappa kept, the bias added), ``GuideModel(DETECTOR_BIAS, False)``
+    (kappa out) and the ranking's options (:class:`..analysis.arm_guidance.ArmRanking`)."""
 
     bias: DetectorBias | None = None
     keep_kappa: bool = True
+    ranking: ArmRanking = ArmRanking()  # noqa: RUF009 (frozen dataclass): the ranking's options
+
+
+ARM_CELLS = {"study": CellNoise(), "arm": CellNoise(0.5, 0.03, 0.3)}  # pascal-calib study guided --arm-cell
+# pascal-calib study guided --arm-guide: the shipped guide and issue 36's variants (docs/guided-sessions.md)
+# ("narrow": the guide before the wide turns, which the second study's variants were measured with)
+_NARROW = ArmRanking(wide_turns=False)
+GUIDE_VARIANTS = {"shipped": GuideModel(), "narrow": GuideModel(ranking=_NARROW),
+                  "bias": GuideModel(DETECTOR_BIAS, ranking=_NARROW),
+                  "bias-no-kappa": GuideModel(DETECTOR_BIAS, False, _NARROW),
+                  "spread": GuideModel(ranking=ArmRanking(spread_weight=1.0, wide_turns=False)),
+                  "wide": GuideModel(ranking=ArmRanking(wide_views=10)),
+                  "wide-spread": GuideModel(ranking=ArmRanking(spread_weight=1.0, wide_views=10))}
 
 
 def designed_views(target: Target, spec: ArmSpec) -> list[Transform]:
@@ -209,20 +230,25 @@ def run_arm_session(strategy: str, seed: int, target_name: str = "ring_grid_a4",
     plan = _plan(strategy if strategy != "guided" else "designed", cell, seed)
     k = 0
     h: HandEyeResult | None = None
+    refused: list[Placement] = []  # suggested views the detector refused since the last usable one
     while len(dets) < n_max and cell.shots < 2 * n_max:
+        asked: Placement | None = None  # the guide's view, if it chose this one
         if strategy != "guided" or len(dets) < 3:
             if k >= len(plan):
                 break
             tool = plan[k]
             k += 1
         else:
-            suggested = _guided_next(h, dets, tools, target, spec, guide)
+            suggested = _guided_next(h, tools, target, spec, guide, refused)
             if suggested is None:
                 break
-            tool = suggested
+            tool, asked = suggested.tool, suggested.view.placement
         det, reported = cell.shoot(tool)
         if not det.ok:
+            if asked is not None:
+                refused.append(asked)
             continue
+        refused = []
         dets.append(det)
         tools.append(reported)
         commanded.append(tool)
@@ -260,9 +286,11 @@ def redraw_session(row: dict[str, Any], draws: int, quick: bool = False) -> dict
     return {"strategy": row["strategy"], "seed": seed, "draws": draws, "redraw": out}
 
 
-def _guided_next(h: HandEyeResult | None, dets: list[Any], tools: list[Transform], target: Target,
-                 spec: ArmSpec, guide: GuideModel) -> Transform | None:
-    """The guide's best tool pose from the latest hand-eye calibration (None: none)."""
+def _guided_next(h: HandEyeResult | None, tools: list[Transform], target: Target, spec: ArmSpec,
+                 guide: GuideModel, refused: list[Placement]) -> ArmSuggestion | None:
+    """The guide's best suggestion from the latest hand-eye calibration (None: none), none near a
+    ``refused`` view (as the node's ``avoid``, :func:`..workflows.suggest.suggest_for_arm`: a view
+    the detector refused is not asked for again)."""
     if h is None or h.calibration.refinement is None:
         return None
     used = [i for i, v in enumerate(h.per_view) if v.used]
@@ -270,8 +298,13 @@ def _guided_next(h: HandEyeResult | None, dets: list[Any], tools: list[Transform
     noise = ViewPredictor(Linearisation.of_refinement(ref), spec.size).noise
     model = arm_model(h, [tools[i] for i in used], target, noise, spec.size, bias=guide.bias,
                       keep_kappa=guide.keep_kappa)
-    s = suggest_arm_views(model, target, TrustRegion(tuple(tools)), n=1, goals=GUIDED_GOALS)
-    return s.suggestions[0].tool if s.suggestions else None
+    s = suggest_arm_views(model, target, TrustRegion(tuple(tools)), n=1 + 3 * len(refused), goals=GUIDED_GOALS,
+                          ranking=guide.ranking)
+    kept = s.suggestions
+    if refused and kept:
+        new = distinct_from_all([a.view.placement for a in kept], refused, spec.size, DISTINCT_ROLL_DEG)
+        kept = [a for a, keep in zip(kept, new, strict=True) if keep]
+    return kept[0] if kept else None
 
 
 def _task(args: tuple[str, int, str, bool, int, CellNoise, GuideModel]) -> dict[str, Any]:

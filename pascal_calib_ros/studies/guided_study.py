@@ -315,9 +315,12 @@ def tilt_limits(quick: bool, per_tilt: int = 12) -> str:
 
 
 def run_guided_study(out: Path, seeds: int = 20, quick: bool = False, only: str = "", jobs: int = 2,
-                     strategies: tuple[str, ...] = STRATEGIES, n_max: int = 20, draws: int = 0) -> dict[str, Any]:
+                     strategies: tuple[str, ...] = STRATEGIES, n_max: int = 20, draws: int = 0,
+                     arm: tuple[str, str] = ("study", "shipped")) -> dict[str, Any]:
     """Run the person cases (module docstring); write guided.json and guided.md to ``out``. ``draws``:
-    the arm sessions' views again under that many fresh noise draws (:mod:`.guided_arm`)."""
+    the arm sessions' views again under that many fresh noise draws (:mod:`.guided_arm`); ``arm``:
+    the arm case's cell and guide, names in :data:`.guided_arm.ARM_CELLS` and
+    :data:`.guided_arm.GUIDE_VARIANTS`."""
     out.mkdir(parents=True, exist_ok=True)
     cs = cases(quick)
     want = only.split(",") if only else [*cs, "arm", "timing"]
@@ -328,9 +331,10 @@ def run_guided_study(out: Path, seeds: int = 20, quick: bool = False, only: str 
     if "tilt" in want:
         extra += tilt_limits(quick)
     if "arm" in want:
-        from .guided_arm import run_arm_study
+        from .guided_arm import ARM_CELLS, GUIDE_VARIANTS, run_arm_study
 
-        extra += run_arm_study(out, seeds, quick, jobs, draws=draws)
+        extra += run_arm_study(out, seeds, quick, jobs, draws=draws, noise=ARM_CELLS[arm[0]],
+                               guide=GUIDE_VARIANTS[arm[1]])
     if not keys:
         print(extra)
         (out / "guided_extra.md").write_text(extra + "\n")

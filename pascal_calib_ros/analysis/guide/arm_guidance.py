@@ -15,7 +15,9 @@ about the optical axis (what a wrist does best, and what the hand-eye rotation n
 motions' rotation axes spread, as Tsai and Lenz ask: "A new technique for fully autonomous and
 efficient 3D robotics hand/eye calibration", IEEE TRA 5(3), 1989), mapped to tool poses. A view
 turned :data:`DISTINCT_ROLL_DEG` or more from a visited one counts as new: for a person it is the
-same view, for the arm a new motion. The package knows no kinematics: a tool pose is kept if it
+same view, for the arm a new motion. The latest visited views are also turned wide (rolled 135-180
+degrees, their tilt mirrored across the line of sight: :class:`ArmRanking`), which spreads the tool
+orientations at the views' own distance. The package knows no kinematics: a tool pose is kept if it
 lies within ``reach`` metres of a visited one and within ``max_turn`` degrees of the nearest
 visited orientation (a trust region).
 
@@ -247,6 +249,11 @@ DISTINCT_ROLL_DEG = 20.0  # an arm's view rolled this far from another is a new 
 ARM_GRID = CandidateGrid(cols=4, rows=3, span=0.7, sizes=(0.35, 0.5), tilts_deg=(25.0, 35.0, 45.0), axes=6,
                          rolls_deg=(-60.0, 0.0, 60.0))
 LOCAL_VIEWS = 10  # the latest visited views around which local candidates are made
+# the latest visited views also turned wide (local_placements): in the arm study (10 seeds x 3 redraws, 12 guided
+# views against 20 designed) X's rotation / translation went from 1.12x / 0.94x to 1.06x / 0.95x (worst seed
+# 2.19x to 1.69x) and, in an arm-dominated cell, from 1.14x / 1.29x to 1.13x / 1.18x; wide turns of all 10 local
+# views gave 1.06x / 0.96x and 1.11x / 1.11x at a third more candidates (docs/guided-sessions.md, third study)
+WIDE_VIEWS = 4
 
 
 @dataclass(frozen=True)
@@ -257,6 +264,42 @@ class ArmGoals:
     sigma_px: float = 0.1
     rotation_deg: float = 0.01
     translation_mm: float = 0.1
+
+
+@dataclass(frozen=True)
+class ArmRanking:
+    """Options of the arm's ranking beyond the goals (issue 36). The default turns the latest
+    :data:`WIDE_VIEWS` visited views wide; the spread term is off.
+
+    ``spread_weight``: adds ``spread_weight * F * ((s_deg / goal_deg)^2 + (s_mm / goal_mm)^2)`` to a
+    candidate's score, s the arm's estimated sigma per axis and pose and F = trace((N (I - R_m^T
+    R_m))^-1) over the visited tool orientations and the candidate's (:func:`orientation_spread`):
+    the arm-only figure of X, which the image rows' share (kappa-inflated) hides in the joint
+    prediction. ``wide_turns``: local candidates also rolled by +-135 and 180 degrees and their tilt
+    axis turned by +-120 and 180 (Tsai and Lenz: the motions' rotation axes spread, large angles), of
+    the latest ``wide_views`` visited views."""
+
+    spread_weight: float = 0.0
+    wide_turns: bool = True
+    wide_views: int = WIDE_VIEWS
+
+
+def orientation_spread(visited: np.ndarray, candidates: np.ndarray) -> np.ndarray:
+    """F = trace(I_R^-1) per candidate, I_R = N (I - R_m^T R_m), R_m the mean of the N rotation
+    matrices ``visited`` (V, 3, 3) and the candidate's (M, 3, 3).
+
+    The chain's rotation rows alone (the arm's noise delta_i ~ N(0, s^2 I) in the tool frame, X
+    and Y free): per view x = R_i^T z - delta_i, z Y's rotation in the base frame; eliminating z
+    leaves the information sum_i I - (sum_i R_i)^T (sum_i R_i) / N = N (I - R_m^T R_m) on X's
+    rotation, over s^2 (first-order least squares, e.g. Hartley & Zisserman, Multiple View
+    Geometry, 2nd ed., A5.2); the translation rows give the same matrix over the arm's position
+    variance. So s sqrt(F) is X's sigma (norm over the axes) from the arm's noise alone: no less than
+    sqrt(3 / N) s, reached when the tool orientations average to zero (Tsai and Lenz's widely
+    spread rotation axes)."""
+    n = len(visited) + 1
+    Rm = (visited.sum(axis=0)[None] + candidates) / n
+    info = n * (np.eye(3)[None] - np.einsum("mji,mjk->mik", Rm, Rm)) + 1e-9 * np.eye(3)[None]
+    return np.trace(np.linalg.inv(info), axis1=-2, axis2=-1)
 
 
 @dataclass(frozen=True)
@@ -278,14 +321,17 @@ class ArmSuggestions:
     n_candidates: int  # feasible views inside the trust region
 
 
-def local_placements(model: ArmModel, target: Target, trust: TrustRegion) -> list[Placement]:
+def local_placements(model: ArmModel, target: Target, trust: TrustRegion, wide: int = 0) -> list[Placement]:
     """Placements near those of the latest visited views (a tight trust region may admit nothing
     of the coarse grid), each far enough to be a new view (:func:`.view_ranking.distinct`): turned
     about the optical axis by +-25, +-45 and 90 degrees, tilted 20 degrees more or less, its tilt
-    axis turned by +-60 degrees, moved by a quarter of the image, 25 % nearer or 30 % farther."""
+    axis turned by +-60 degrees, moved by a quarter of the image, 25 % nearer or 30 % farther;
+    the latest ``wide`` of them (:class:`ArmRanking`) also turned by +-135 and 180 degrees and their
+    tilt axis by +-120 and 180 (rolled 0 and +-60 degrees)."""
     cam = model.predictor.camera_sized
     out = []
-    for g in trust.visited[-LOCAL_VIEWS:]:
+    latest = trust.visited[-LOCAL_VIEWS:]
+    for k, g in enumerate(latest):
         p = placement_of(target, cam, model.frames.camera_pose(g))
         u, v = p.pixel
         du, dv = 0.25 * cam.width, 0.25 * cam.height
@@ -294,17 +340,22 @@ def local_placements(model: ArmModel, target: Target, trust: TrustRegion) -> lis
         out += [replace(p, axis_deg=p.axis_deg + d, roll_deg=p.roll_deg + r) for d in (-60.0, 60.0) for r in (-25, 25)]
         out += [replace(p, pixel=(u + a, v + b)) for a, b in ((du, 0.0), (-du, 0.0), (0.0, dv), (0.0, -dv))]
         out += [replace(p, distance=p.distance * f) for f in (0.75, 1.3)]
+        if k >= len(latest) - wide:
+            out += [replace(p, roll_deg=p.roll_deg + r) for r in (-135.0, 135.0, 180.0)]
+            out += [replace(p, axis_deg=p.axis_deg + d, roll_deg=p.roll_deg + r) for d in (-120.0, 120.0, 180.0)
+                    for r in (-60.0, 0.0, 60.0)]
     return out
 
 
 def arm_candidates(model: ArmModel, target: Target, trust: TrustRegion, grid: CandidateGrid = ARM_GRID,
-                   rules: Feasibility | None = None) -> tuple[list[Candidate], list[Transform]]:
+                   rules: Feasibility | None = None, wide: int = 0) -> tuple[list[Candidate], list[Transform]]:
     """Feasible views whose tool pose lies in the trust region, and those tool poses: the grid's
-    placements and placements near the visited views (:func:`local_placements`)."""
+    placements and placements near the visited views (:func:`local_placements`, ``wide`` passed on:
+    the latest visited views that get wide turns)."""
     cam = model.predictor.camera_sized
     rules = rules or default_feasibility(target, cam.width)
     placements = candidate_placements(cam, grid, target) + partial_placements(cam, target) \
-        + local_placements(model, target, trust)
+        + local_placements(model, target, trust, wide)
     ok = with_ray(cam, placements)
     R, t = place_arrays(target, cam, ok)
     # the trust region first (one batch of tool poses), then the feasibility rules on what is left
@@ -323,19 +374,29 @@ def arm_candidates(model: ArmModel, target: Target, trust: TrustRegion, grid: Ca
 
 def suggest_arm_views(model: ArmModel, target: Target, trust: TrustRegion, n: int = 5,
                       goals: ArmGoals = ArmGoals(), grid: CandidateGrid = ARM_GRID,
-                      options: CalibrationOptions = CalibrationOptions()) -> ArmSuggestions:  # noqa: B008
+                      options: CalibrationOptions = CalibrationOptions(),  # noqa: B008
+                      ranking: ArmRanking = ArmRanking()) -> ArmSuggestions:
     """The ``n`` best tool poses (module docstring): ranked by kappa (sigma_px / goal)^2 +
     (sigma_rot / goal)^2 + (sigma_trans / goal)^2 of X, from the first suggestion on (kappa the
-    factor :func:`arm_model` took out of the image rows: the intrinsics' variances scale with it)."""
+    factor :func:`arm_model` took out of the image rows: the intrinsics' variances scale with it),
+    plus the orientation-spread term of ``ranking`` (:class:`ArmRanking`, off by default)."""
     pred = model.predictor
     now = pred.sigma_now()
     deg_now, mm_now = hand_eye_sigmas(model, pred.cov_now)
-    cands, tools = arm_candidates(model, target, trust, grid)
+    cands, tools = arm_candidates(model, target, trust, grid, wide=ranking.wide_views if ranking.wide_turns else 0)
+    chain = model.problem.chain
+    arm_share = ((np.degrees(chain.sigma_rot) / goals.rotation_deg) ** 2
+                 + (1000 * chain.sigma_trans / goals.translation_mm) ** 2)
+    visited_R = np.stack([g.R for g in trust.visited]) if trust.visited else np.zeros((0, 3, 3))
 
     def score(p: Prediction, idx: list[int]) -> np.ndarray:
         deg, mm = hand_eye_sigmas(model, p.readout_cov)
-        return np.asarray(model.kappa * (p.sigma_px / goals.sigma_px) ** 2
-                          + (np.asarray(deg) / goals.rotation_deg) ** 2 + (np.asarray(mm) / goals.translation_mm) ** 2)
+        s = (model.kappa * (p.sigma_px / goals.sigma_px) ** 2
+             + (np.asarray(deg) / goals.rotation_deg) ** 2 + (np.asarray(mm) / goals.translation_mm) ** 2)
+        if ranking.spread_weight > 0 and idx:
+            F = orientation_spread(visited_R, np.stack([tools[i].R for i in idx]))
+            s = s + ranking.spread_weight * arm_share * F
+        return np.asarray(s)
 
     ranked = rank_candidates(pred, target, cands, n, options, score,
                              chain_of=lambda idx: chain_rows(model, [tools[i] for i in idx]),

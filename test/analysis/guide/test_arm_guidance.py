@@ -124,3 +124,62 @@ def test_batched_tool_poses_and_chain_rows_match_one_at_a_time(arm_case) -> None
             e[k] = h
             d = (prob.chain_residuals(xy, P[i:i + 1] + e, M) - prob.chain_residuals(xy, P[i:i + 1] - e, M)) / (2 * h)
             assert np.allclose(Jv[i, :, k], d[0], rtol=1e-7, atol=1e-6 * np.abs(d).max() + 1e-12)
+
+
+def test_orientation_spread_is_the_chain_rotation_rows_information() -> None:
+    """:func:`orientation_spread` (trace of (N (I - R_m^T R_m))^-1) equals the least-squares
+    covariance of X's rotation from the chain's rotation rows alone, x = R_i^T z - delta_i with Y's
+    rotation z free, built row by row; and a candidate turned 180 degrees about a visited view's
+    axis spreads the orientations more (smaller F) than that view taken again."""
+    from scipy.spatial.transform import Rotation
+
+    from pascal_calib_ros.analysis.guide.arm_guidance import orientation_spread
+
+    rng = np.random.default_rng(2)
+    visited = Rotation.from_rotvec(rng.normal(0, 0.4, (6, 3))).as_matrix()
+    cands = Rotation.from_rotvec(np.r_[rng.normal(0, 0.4, (3, 3)), [[0.0, 0.0, np.pi]]]).as_matrix()
+    F = orientation_spread(visited, cands)
+    for k, c in enumerate(cands):
+        Rs = np.concatenate([visited, c[None]])
+        A = np.concatenate([np.c_[np.eye(3), -R.T] for R in Rs])  # unknowns (x, z), one block of rows per view
+        assert F[k] == pytest.approx(np.trace(np.linalg.inv(A.T @ A)[:3, :3]), rel=1e-6)
+    near = orientation_spread(visited, visited[:1])  # the first visited orientation again
+    turned = orientation_spread(visited, (visited[0] @ Rotation.from_rotvec([0, 0, np.pi]).as_matrix())[None])
+    assert turned[0] < near[0]
+
+
+def test_the_spread_term_and_wide_turns_favour_spread_tool_orientations(arm_case) -> None:  # type: ignore[no-untyped-def]
+    """With ``ArmRanking(spread_weight)`` the best suggestion spreads the tool orientations at least
+    as much as the default ranking's (its F no larger), and with a large weight strictly more than
+    the median candidate; ``wide_turns`` (the default) adds candidates, the latest view rolled by
+    180 degrees among them."""
+    from pascal_calib_ros.analysis.guide.arm_guidance import ArmRanking, orientation_spread
+
+    target, model, poses = arm_case
+    trust = TrustRegion(tuple(poses))
+    goals = ArmGoals(0.05, 0.005, 0.05)
+    visited = np.stack([g.R for g in poses])
+
+    def spread_of(ranking: ArmRanking) -> float:
+        s = suggest_arm_views(model, target, trust, n=1, goals=goals, ranking=ranking)
+        return float(orientation_spread(visited, s.suggestions[0].tool.R[None])[0])
+
+    shipped, heavy = spread_of(ArmRanking()), spread_of(ArmRanking(spread_weight=100.0))
+    assert heavy <= shipped
+    _, tools = arm_candidates(model, target, trust)
+    assert heavy < np.median(orientation_spread(visited, np.stack([t.R for t in tools])))
+    wide, _ = arm_candidates(model, target, trust, wide=10)
+    narrow, _ = arm_candidates(model, target, trust)
+    assert len(wide) > len(narrow)
+    # the default turns the latest views wide: rolled 135-180 degrees from a visited view, among the candidates
+    default = suggest_arm_views(model, target, trust, n=1, goals=goals)
+    assert default.n_candidates > suggest_arm_views(model, target, trust, n=1, goals=goals,
+                                                    ranking=ArmRanking(wide_turns=False)).n_candidates
+    cam = model.predictor.camera_sized
+    last = placement_of(target, cam, model.frames.camera_pose(poses[-1]))
+    # (a turn of 180 degrees is outside the default trust region of 120 degrees around these five views)
+    cands, _ = arm_candidates(model, target, TrustRegion(tuple(poses), max_turn=180.0), wide=ArmRanking().wide_views)
+    rolls = [abs((p.roll_deg - last.roll_deg + 180) % 360 - 180) for p, _ in cands
+             if np.hypot(p.pixel[0] - last.pixel[0], p.pixel[1] - last.pixel[1]) < 2.0
+             and abs(p.distance / last.distance - 1) < 0.01 and abs(p.tilt_deg - last.tilt_deg) < 1.0]
+    assert max(rolls) > 170.0

@@ -49,16 +49,26 @@ def test_barrel_distortion_bends_a_ring_near_the_border_or_close_beyond_the_dete
     assert centre < 0.2
 
 
-def test_the_share_predicts_the_detectors_answer_on_renders() -> None:
+def test_a_ring_past_the_shape_limit_is_still_measured_on_renders() -> None:
+    """The share is against the ellipse tests (a share above 1: the ring's image is no conic); the
+    detector measures such a ring along its traced contour (detect/contour_edges.py, issue 36),
+    the guide keeps its candidates below the limits anyway (feasibility, below), where the
+    ellipse path measures them. Both views measured, every point within 0.3 px of the truth."""
     ring = resolve_target("ring_a4")
-    params = DetectionParams.for_lens(False)
-    for p, seen in ((BORDER, False), (CENTRE, True)):
+    params = DetectionParams.for_lens(False, gamma=SensorModel().gamma)  # detected as the renders' gamma
+    for p in (BORDER, CENTRE):
         T = place(ring, WIDE, p)
         img = render_view(ring, WIDE, Pose(T.R, T.translation), SensorModel(blur_sigma=1.0, seed=3)).image
         det = detect_target(img, ring, params)
-        assert det.ok is seen
-        # refused for what the lens does to the ring, said so (not "no ring found")
-        assert seen or det.reason.startswith("ring not the image of concentric circles"), det.reason
+        assert det.ok, det.reason
+        for e in det.edges:  # each edge point on its circle's true image: undistorted, on the conic
+            r = ring.circles[e.circle]
+            rays = WIDE.unproject(e.points)
+            X = rays * (T.translation @ T.R[:, 2] / (rays @ T.R[:, 2]))[:, None]  # on the target's plane
+            local = (X - T.translation) @ T.R
+            off = np.abs(np.hypot(local[:, 0] - r.center[0], local[:, 1] - r.center[1]) - r.radius)
+            px = off * WIDE.K[0, 0] / np.linalg.norm(X, axis=1)  # metres on the sheet -> pixels, roughly
+            assert np.median(px) < 0.05 and px.max() < 0.3, (p, np.median(px), px.max())
 
 
 def test_feasibility_refuses_a_bent_ring_and_says_why() -> None:
