@@ -30,6 +30,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ...detect import BENT_OUTLINE
 from ...geometry import Camera, Placement, Transform
 from ...targets import Target
 from .candidate_shapes import shape_shares
@@ -44,6 +45,9 @@ MIN_MODULE_PX = 3.2
 # a candidate's circles may use this share of the detector's ellipse limits (:mod:`.candidate_shapes`):
 # the rest is for the outline's pixel noise, the person's placement and the estimate's error
 SHAPE_SHARE = 0.6
+# a single ring past those limits is still measured, along its traced contour, up to BENT_OUTLINE
+# times them (detect/contour_edges.py, issue 36): the same share of that
+RING_SHAPE_SHARE = SHAPE_SHARE * BENT_OUTLINE
 
 
 def max_tilt_deg(target: Target) -> float:
@@ -188,7 +192,8 @@ def default_feasibility(target: Target, width: int, distances: np.ndarray | None
         lo, hi = 0.6 * float(np.min(distances)), 1.5 * float(np.max(distances))
     return Feasibility(margin_px=max(10.0, 0.02 * width), max_tilt_deg=max_tilt_deg(target), min_distance=lo,
                        max_distance=hi, min_radius_px=4.0 if target.grids else 8.0,
-                       min_square_px=MIN_MODULE_PX if partial_views_count(target) else 7.0)
+                       min_square_px=MIN_MODULE_PX if partial_views_count(target) else 7.0,
+                       shape_share=RING_SHAPE_SHARE if target.rings and not target.grids else SHAPE_SHARE)
 
 
 def line_of_sight_tilt_deg(target: Target, pose: Transform) -> float:

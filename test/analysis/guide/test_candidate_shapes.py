@@ -1,6 +1,7 @@
 """A candidate's circles must image as the ellipses the detector accepts (analysis/guide/candidate_shapes.py,
 the shape rule of analysis/guide/candidates.py): exact ellipses under a pinhole, bent beyond the detector's
-tests near the border of a wide lens with strong barrel distortion, where the detector refuses the view."""
+tests near the border of a wide lens with strong barrel distortion, where the detector measures a single
+ring along its traced contour (up to a limit) and refuses a grid's elements."""
 
 from __future__ import annotations
 
@@ -11,6 +12,8 @@ import pytest
 
 from pascal_calib_ros.analysis.guide.candidate_shapes import contour_scale, shape_circles, shape_shares
 from pascal_calib_ros.analysis.guide.candidates import (
+    RING_SHAPE_SHARE,
+    SHAPE_SHARE,
     Feasibility,
     Placement,
     default_feasibility,
@@ -18,7 +21,7 @@ from pascal_calib_ros.analysis.guide.candidates import (
     place,
 )
 from pascal_calib_ros.detect.detection import DetectionParams
-from pascal_calib_ros.detect.target_detector import detect_target
+from pascal_calib_ros.detect.target_detector import BENT_OUTLINE, detect_target
 from pascal_calib_ros.geometry import ImageSize
 from pascal_calib_ros.geometry.camera import Camera
 from pascal_calib_ros.sim.render import Pose, SensorModel, render_view
@@ -72,10 +75,19 @@ def test_a_ring_past_the_shape_limit_is_still_measured_on_renders() -> None:
 
 
 def test_feasibility_refuses_a_bent_ring_and_says_why() -> None:
+    """A single ring is measured along its traced contour up to BENT_OUTLINE times the ellipse
+    tests' limits: the guide offers it up to the same share of that (RING_SHAPE_SHARE); a grid's
+    elements have no such path and keep SHAPE_SHARE of the ellipse limits."""
     ring = resolve_target("ring_a4")
     rules = default_feasibility(ring, WIDE.width)
-    assert "not ellipses the detector accepts" in feasibility_problem(ring, WIDE, place(ring, WIDE, BORDER), rules)
-    assert feasibility_problem(ring, WIDE, place(ring, WIDE, CENTRE), rules) == ""
+    assert rules.shape_share == RING_SHAPE_SHARE == SHAPE_SHARE * BENT_OUTLINE
+    assert default_feasibility(resolve_target("ring_grid_a4"), WIDE.width).shape_share == SHAPE_SHARE
+    # BORDER and CLOSE are past the ellipse tests (shares 1.0-1.1) but within the ring's share
+    assert feasibility_problem(ring, WIDE, place(ring, WIDE, BORDER), rules) == ""
+    assert feasibility_problem(ring, WIDE, place(ring, WIDE, CLOSE), rules) == ""
+    tight = replace(rules, shape_share=SHAPE_SHARE)
+    assert "not ellipses the detector accepts" in feasibility_problem(ring, WIDE, place(ring, WIDE, BORDER), tight)
+    assert feasibility_problem(ring, WIDE, place(ring, WIDE, CENTRE), tight) == ""
     unchecked = replace(rules, shape_share=np.inf)
     assert feasibility_problem(ring, WIDE, place(ring, WIDE, BORDER), unchecked) == ""
     assert Feasibility().shape_share < 1.0  # a margin below the detector's limit
